@@ -1,0 +1,26 @@
+"""labsupport: the small package behind the lab "Control of Robotic Manipulators".
+
+Modules, one idea each:
+
+========================  ===============================================================
+``plants``                the analytic single-joint model and the MuJoCo model loaders
+``dynamics``              mass matrix, bias forces, Jacobians from MuJoCo (3.x and 4.x)
+``kinematics``            forward/inverse kinematics of the 2R and 3R arms
+``trajectories``          versine, sinusoid and circles: position, velocity, acceleration
+``gains``                 PD gain design (actuator limit, %OS/settling time, wn/zeta)
+``controllers``           PI, PD, feedforward, computed torque, operational space
+``sim``                   one MuJoCo simulation loop that returns a :class:`~labsupport.sim.Log`
+``metrics``               RMS error, cumulative effort, overshoot, settling time
+``render``                offscreen MuJoCo video (EGL, OSMesa fallback) with mediapy
+``plots``                 the figure layouts the notebooks share
+========================  ===============================================================
+
+Importing the package chooses an OpenGL backend for MuJoCo (``MUJOCO_GL``) before MuJoCo
+itself is imported, so import ``labsupport`` first in a notebook.
+"""
+
+from labsupport import gl as _gl
+
+_gl.select_backend()
+
+__version__ = "1.0.0"

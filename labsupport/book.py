@@ -1,0 +1,20 @@
+"""Ties between notebooks and the book: numbers shown in prose come from executed outputs.
+
+:func:`glue` stores a value under a name with MyST-NB, so a page's text can cite it with
+``{glue:text}`name:.3f``` and prose and results cannot drift apart. Without MyST-NB (Colab)
+it only returns the value.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+def glue(name: str, value: Any, display: bool = False) -> Any:
+    """Record ``value`` under ``name`` for the book's ``{glue:...}`` roles; returns ``value``."""
+    try:
+        from myst_nb import glue as _glue
+    except ImportError:  # Colab or a bare kernel: nothing to record into
+        return value
+    _glue(name, value, display=display)
+    return value

@@ -1,0 +1,107 @@
+r"""Rigid-body quantities from MuJoCo, the same calls on MuJoCo 3.x and 4.x.
+
+The equation of motion MuJoCo integrates is
+
+.. math:: M(q)\,\ddot q + h(q,\dot q) = \tau, \qquad h = C(q,\dot q)\,\dot q + g(q)
+
+(``qfrc_bias`` is :math:`h`). Every function here reads what MuJoCo last computed in
+``data`` (``mj_forward`` or ``mj_step``); none of them calls ``mj_forward`` itself, so a
+controller sees exactly the state the loop hands it.
+
+MuJoCo 4 changed two things the lab's text relies on: ``mj_fullM`` takes ``data`` instead of
+the sparse array ``data.qM``, and ``MjData.qM`` is gone. :func:`mass_matrix` is the only place
+that knows; keep it that way.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+#: True on MuJoCo >= 4, where ``mj_fullM(model, data, dst)`` replaced ``mj_fullM(model, dst, qM)``.
+FULLM_TAKES_DATA = not hasattr(mujoco.MjData, "qM")
+
+
+def mass_matrix(model: mujoco.MjModel, data: mujoco.MjData, out: np.ndarray | None = None) -> np.ndarray:
+    r"""Dense joint-space inertia matrix :math:`M(q)` of shape ``(nv, nv)``.
+
+    Args:
+        model, data: the MuJoCo model and the data holding the factorised inertia.
+        out: optional preallocated ``(nv, nv)`` float64 array to fill (no allocation).
+    """
+    if out is None:
+        out = np.zeros((model.nv, model.nv))
+    if FULLM_TAKES_DATA:
+        mujoco.mj_fullM(model, data, out)
+    else:  # MuJoCo 3.x
+        mujoco.mj_fullM(model, out, data.qM)
+    return out
+
+
+def bias_forces(data: mujoco.MjData) -> np.ndarray:
+    r"""Bias forces :math:`h(q,\dot q) = C(q,\dot q)\dot q + g(q)` (``qfrc_bias``), a copy."""
+    return data.qfrc_bias.copy()
+
+
+def solve_mass(model: mujoco.MjModel, data: mujoco.MjData, rhs: np.ndarray,
+               out: np.ndarray | None = None) -> np.ndarray:
+    r""":math:`x = M(q)^{-1} y` using MuJoCo's sparse factorisation (no explicit inverse).
+
+    ``rhs`` is ``(nv,)`` or ``(k, nv)`` (one right-hand side per row).
+    """
+    rhs = np.ascontiguousarray(rhs, dtype=float)
+    y = rhs.reshape(-1, model.nv)
+    x = np.empty_like(y) if out is None else out.reshape(-1, model.nv)
+    mujoco.mj_solveM(model, data, x, y)
+    return x.reshape(rhs.shape)
+
+
+def site_jacobian(model: mujoco.MjModel, data: mujoco.MjData, site: int | str,
+                  out: np.ndarray | None = None) -> np.ndarray:
+    r"""Geometric Jacobian of a site, shape ``(6, nv)``: rows 0–2 linear, rows 3–5 angular.
+
+    .. math:: \begin{bmatrix} v \\ \omega \end{bmatrix} = J(q)\,\dot q
+    """
+    site_id = _site_id(model, site)
+    if out is None:
+        out = np.zeros((6, model.nv))
+    mujoco.mj_jacSite(model, data, out[:3], out[3:], site_id)
+    return out
+
+
+def site_jdot_qdot(model: mujoco.MjModel, data: mujoco.MjData, site: int | str) -> np.ndarray:
+    r"""The velocity-product acceleration :math:`\dot J(q,\dot q)\,\dot q` of a site, shape ``(6,)``.
+
+    With it, :math:`\ddot x = J\ddot q + \dot J\dot q`. Uses ``mj_jacDot`` at the site's
+    current position.
+    """
+    site_id = _site_id(model, site)
+    jdot = np.zeros((6, model.nv))
+    mujoco.mj_jacDot(model, data, jdot[:3], jdot[3:], data.site_xpos[site_id],
+                     model.site_bodyid[site_id])
+    return jdot @ data.qvel
+
+
+def task_space_inertia(model: mujoco.MjModel, data: mujoco.MjData, jac: np.ndarray,
+                       damping: float = 0.0) -> np.ndarray:
+    r"""Operational-space (task-space) inertia :math:`\Lambda = (J M^{-1} J^\top + \lambda I)^{-1}`.
+
+    ``damping`` (:math:`\lambda \ge 0`) keeps :math:`\Lambda` bounded near singular
+    configurations; with :math:`\lambda = 0` and a square invertible :math:`J`,
+    :math:`J^\top \Lambda = M J^{-1}`.
+    """
+    minv_jt = solve_mass(model, data, jac).T            # M^{-1} J^T, shape (nv, k)
+    lam_inv = jac @ minv_jt
+    if damping:
+        lam_inv = lam_inv + damping * np.eye(lam_inv.shape[0])
+    return np.linalg.solve(lam_inv, np.eye(lam_inv.shape[0]))
+
+
+def _site_id(model: mujoco.MjModel, site: int | str) -> int:
+    if isinstance(site, str):
+        site_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
+        if site_id < 0:
+            names = [model.site(i).name for i in range(model.nsite)]
+            raise ValueError(f"site {site!r} is not in the model; its sites are {names}")
+        return site_id
+    return int(site)

@@ -1,0 +1,142 @@
+r"""PD gain design for a joint :math:`M\ddot\theta + b\dot\theta = \tau` and for computed torque.
+
+Closing :math:`\tau = K_p e + K_d \dot e` around the joint gives the error dynamics
+
+.. math:: M\ddot e + (b + K_d)\dot e + K_p e = 0
+   \;\Longleftrightarrow\; \ddot e + 2\zeta\omega_n\dot e + \omega_n^2 e = 0,
+   \qquad \omega_n = \sqrt{K_p/M},\; \zeta = \frac{b + K_d}{2\sqrt{K_p M}}.
+
+Computed torque cancels :math:`M` and :math:`b`, so its gains act on a unit mass:
+:math:`K_p = \omega_n^2`, :math:`K_d = 2\zeta\omega_n` (:func:`ct_gains`).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+
+class Gains(NamedTuple):
+    """Proportional and derivative gains."""
+
+    Kp: float
+    Kd: float
+
+
+class SecondOrder(NamedTuple):
+    """Natural frequency [rad/s] and damping ratio of a second-order error response."""
+
+    wn: float
+    zeta: float
+
+
+def _positive(name: str, value: float) -> float:
+    value = float(value)
+    if not np.isfinite(value) or value <= 0:
+        raise ValueError(f"{name} must be a positive number, got {value!r}")
+    return value
+
+
+def _non_negative(name: str, value: float) -> float:
+    value = float(value)
+    if not np.isfinite(value) or value < 0:
+        raise ValueError(f"{name} must be a non-negative number, got {value!r}")
+    return value
+
+
+def pd_gains(M: float, b: float, wn: float, zeta: float) -> Gains:
+    r"""Gains that place the joint's error poles: :math:`K_p = M\omega_n^2`, :math:`K_d = 2\zeta\omega_n M - b`.
+
+    Raises ``ValueError`` when the friction alone already damps more than asked
+    (:math:`K_d < 0`).
+    """
+    M, wn = _positive("M", M), _positive("wn", wn)
+    b, zeta = _non_negative("b", b), _non_negative("zeta", zeta)
+    Kd = 2 * zeta * wn * M - b
+    if Kd < 0:
+        raise ValueError(
+            f"zeta={zeta:g} with wn={wn:g} needs Kd={Kd:.3g} < 0: friction b={b:g} already "
+            "damps more than that; raise wn or zeta")
+    return Gains(M * wn**2, Kd)
+
+
+def second_order(M: float, b: float, Kp: float, Kd: float) -> SecondOrder:
+    r"""Inverse of :func:`pd_gains`: :math:`\omega_n = \sqrt{K_p/M}`, :math:`\zeta = (b + K_d)/(2\sqrt{K_p M})`."""
+    M, Kp = _positive("M", M), _positive("Kp", Kp)
+    b = _non_negative("b", b)
+    return SecondOrder(np.sqrt(Kp / M), (b + float(Kd)) / (2 * np.sqrt(Kp * M)))
+
+
+def actuator_limited_gains(M: float, b: float, tau_max: float, initial_error: float) -> Gains:
+    r"""Method 1: the largest :math:`K_p` whose step torque stays within the actuator, then :math:`\zeta = 1`.
+
+    The PD torque peaks at :math:`t = 0`, :math:`\tau_0 = K_p e_0`, so
+    :math:`K_p = \tau_{\max}/|e_0|` and :math:`K_d = 2\sqrt{K_p M} - b` (critical damping).
+    """
+    tau_max = _positive("tau_max", tau_max)
+    e0 = _positive("|initial_error|", abs(initial_error))
+    Kp = tau_max / e0
+    return pd_gains(M, b, np.sqrt(Kp / _positive("M", M)), 1.0)
+
+
+def damping_for_overshoot(percent_overshoot: float) -> float:
+    r"""Damping ratio giving a step overshoot of :math:`\%OS`:
+
+    .. math:: \zeta = \frac{-\ln(\%OS/100)}{\sqrt{\pi^2 + \ln^2(\%OS/100)}}
+    """
+    os = float(percent_overshoot)
+    if not 0 < os < 100:
+        raise ValueError(f"percent_overshoot must be in (0, 100), got {percent_overshoot!r}")
+    ln = np.log(os / 100)
+    return float(-ln / np.sqrt(np.pi**2 + ln**2))
+
+
+def frequency_for_settling(zeta: float, settling_time: float) -> float:
+    r"""Natural frequency for a 2 % settling time with the envelope rule :math:`t_s \approx 4/(\zeta\omega_n)`.
+
+    This is the lab's rule. It is the time the envelope :math:`e^{-\zeta\omega_n t}` needs to
+    fall to about 2 %; the response itself can settle earlier. :func:`exact_settling_frequency`
+    gives the frequency for which the simulated response settles at exactly ``settling_time``.
+    """
+    return 4.0 / (_positive("zeta", zeta) * _positive("settling_time", settling_time))
+
+
+def spec_gains(M: float, b: float, percent_overshoot: float, settling_time: float) -> tuple[Gains, SecondOrder]:
+    r"""Method 2: gains from a percent overshoot and a 2 % settling time (lab's rule).
+
+    :math:`\zeta` from :func:`damping_for_overshoot`, :math:`\omega_n = 4/(\zeta t_s)`, then
+    :func:`pd_gains`. Returns the gains and the (wn, zeta) they were designed for.
+    """
+    zeta = damping_for_overshoot(percent_overshoot)
+    wn = frequency_for_settling(zeta, settling_time)
+    return pd_gains(M, b, wn, zeta), SecondOrder(wn, zeta)
+
+
+def step_settling_time(wn: float, zeta: float, band: float = 0.02) -> float:
+    r"""Exact settling time of the unit step response of :math:`\ddot y + 2\zeta\omega_n\dot y + \omega_n^2 y = \omega_n^2`.
+
+    The last instant :math:`|1 - y(t)| > \text{band}`, found on the closed-form response (no
+    envelope approximation). Scales as :math:`1/\omega_n`.
+    """
+    wn, zeta = _positive("wn", wn), _positive("zeta", zeta)
+    from labsupport.metrics import settling_time, second_order_step
+
+    t = np.linspace(0.0, 12.0 / (zeta * wn) + 10.0 / wn, 200_001)
+    return settling_time(t, second_order_step(t, wn, zeta), final=1.0, initial=0.0, band=band)
+
+
+def exact_settling_frequency(zeta: float, settling_time: float, band: float = 0.02) -> float:
+    r""":math:`\omega_n` for which the step response settles (within ``band``) at exactly ``settling_time``.
+
+    Because the settling time scales as :math:`1/\omega_n`,
+    :math:`\omega_n = \omega_1\,t_s(\omega_1)/t_s` with :math:`\omega_1 = 1`.
+    """
+    return step_settling_time(1.0, zeta, band) / _positive("settling_time", settling_time)
+
+
+def ct_gains(wn: float, zeta: float) -> Gains:
+    r"""Computed-torque gains for the unit-mass error dynamics :math:`\ddot e + K_d\dot e + K_p e = 0`:
+    :math:`K_p = \omega_n^2`, :math:`K_d = 2\zeta\omega_n`."""
+    wn, zeta = _positive("wn", wn), _non_negative("zeta", zeta)
+    return Gains(wn**2, 2 * zeta * wn)

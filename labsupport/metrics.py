@@ -1,0 +1,94 @@
+r"""Performance measures: RMS error, cumulative effort, overshoot, settling time, and the
+closed-form second-order step response they are checked against."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.integrate import cumulative_trapezoid
+
+
+def rms(error, axis=0):
+    r"""Root mean square :math:`\sqrt{\tfrac1N\sum_k e_k^2}` along ``axis`` (per component)."""
+    error = np.asarray(error, dtype=float)
+    return np.sqrt(np.mean(error**2, axis=axis))
+
+
+def rms_norm(error):
+    r"""RMS of the error vector's norm, :math:`\sqrt{\tfrac1N\sum_k \lVert e_k\rVert^2}`, for ``(N, d)`` errors."""
+    error = np.asarray(error, dtype=float)
+    return float(np.sqrt(np.mean(np.sum(error**2, axis=-1))))
+
+
+def cumulative_effort(t, tau):
+    r"""Cumulative control effort :math:`E(t) = \int_0^t \lVert\tau\rVert^2\,dt'` (trapezoidal rule).
+
+    ``tau`` is ``(N,)`` or ``(N, nu)``; the squared norm sums the joints.
+    """
+    tau = np.asarray(tau, dtype=float)
+    sq = tau**2 if tau.ndim == 1 else np.sum(tau**2, axis=1)
+    return cumulative_trapezoid(sq, np.asarray(t, dtype=float), initial=0.0)
+
+
+def overshoot(y, final: float, initial: float) -> float:
+    r"""Percent overshoot of a step response, :math:`100\,\max_t (y - y_f)/(y_f - y_0)`, 0 if none."""
+    y = np.asarray(y, dtype=float)
+    span = final - initial
+    if span == 0:
+        raise ValueError("final and initial are equal: a step of zero size has no overshoot")
+    return max(0.0, 100.0 * float(np.max((y - final) / span)))
+
+
+def settling_time(t, y, final: float, initial: float, band: float = 0.02) -> float:
+    r"""First time after which :math:`|y - y_f| \le \text{band}\,|y_f - y_0|` for good.
+
+    Returns ``nan`` if the response is still outside the band at the end of the record.
+    """
+    t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
+    outside = np.abs(y - final) > band * abs(final - initial)
+    if not outside.any():
+        return float(t[0])
+    last = int(np.flatnonzero(outside)[-1])
+    if last == len(t) - 1:
+        return float("nan")
+    # interpolate the band crossing between the last sample outside and the next one inside
+    e0, e1 = abs(y[last] - final), abs(y[last + 1] - final)
+    lim = band * abs(final - initial)
+    frac = (e0 - lim) / (e0 - e1) if e0 != e1 else 0.0
+    return float(t[last] + frac * (t[last + 1] - t[last]))
+
+
+def second_order_step(t, wn: float, zeta: float):
+    r"""Closed-form unit step response of :math:`\ddot y + 2\zeta\omega_n\dot y + \omega_n^2 y = \omega_n^2 u(t)`.
+
+    Underdamped (:math:`\zeta<1`): :math:`y = 1 - e^{-\zeta\omega_n t}\left(\cos\omega_d t +
+    \frac{\zeta}{\sqrt{1-\zeta^2}}\sin\omega_d t\right)`, :math:`\omega_d = \omega_n\sqrt{1-\zeta^2}`;
+    critical: :math:`y = 1 - (1+\omega_n t)e^{-\omega_n t}`; overdamped: sum of two exponentials.
+    """
+    t = np.asarray(t, dtype=float)
+    if zeta < 1:
+        wd = wn * np.sqrt(1 - zeta**2)
+        return 1 - np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta / np.sqrt(1 - zeta**2) * np.sin(wd * t))
+    if zeta == 1:
+        return 1 - (1 + wn * t) * np.exp(-wn * t)
+    s1 = -wn * (zeta - np.sqrt(zeta**2 - 1))
+    s2 = -wn * (zeta + np.sqrt(zeta**2 - 1))
+    return 1 + (s2 * np.exp(s1 * t) - s1 * np.exp(s2 * t)) / (s1 - s2)
+
+
+def second_order_error(t, e0, edot0, wn: float, zeta: float):
+    r"""Closed-form free response of :math:`\ddot e + 2\zeta\omega_n\dot e + \omega_n^2 e = 0` from
+    :math:`e(0)=e_0`, :math:`\dot e(0)=\dot e_0` (any :math:`\zeta>0`); broadcasts over components.
+    """
+    t = np.asarray(t, dtype=float)[..., None] if np.ndim(e0) else np.asarray(t, dtype=float)
+    e0, edot0 = np.asarray(e0, dtype=float), np.asarray(edot0, dtype=float)
+    a = zeta * wn
+    if zeta < 1:
+        wd = wn * np.sqrt(1 - zeta**2)
+        return np.exp(-a * t) * (e0 * np.cos(wd * t) + (edot0 + a * e0) / wd * np.sin(wd * t))
+    if zeta == 1:
+        return np.exp(-wn * t) * (e0 + (edot0 + wn * e0) * t)
+    r = wn * np.sqrt(zeta**2 - 1)
+    s1, s2 = -a + r, -a - r
+    c1 = (edot0 - s2 * e0) / (s1 - s2)
+    c2 = e0 - c1
+    return c1 * np.exp(s1 * t) + c2 * np.exp(s2 * t)

@@ -1,0 +1,61 @@
+"""Conventions every notebook follows, shared by the tests and by whoever writes a notebook.
+
+* The first cell is :func:`install_cell_source` with the repository URL of ``_config.yml``,
+  tagged ``hide-input`` and ``remove-output``: on Colab it installs labsupport, elsewhere it
+  does nothing.
+* Notebooks are committed without outputs; the book build and nbval execute them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import nbformat
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+INSTALL_CELL_TAGS = ["hide-input", "remove-output"]
+
+
+def repository_url() -> str:
+    """The repository URL, set once in ``_config.yml``."""
+    config = yaml.safe_load((ROOT / "_config.yml").read_text(encoding="utf-8"))
+    return config["repository"]["url"].rstrip("/")
+
+
+def install_cell_source(url: str | None = None, branch: str = "main") -> str:
+    """The exact source of every notebook's first cell."""
+    url = url or repository_url()
+    return (
+        "# Set-up: on Colab, install labsupport (with its models and pinned dependencies)\n"
+        "# from the course repository. Anywhere else this cell does nothing.\n"
+        "import subprocess, sys\n"
+        'if "google.colab" in sys.modules:\n'
+        '    subprocess.run([sys.executable, "-m", "pip", "install", "-q",\n'
+        f'                    "labsupport @ git+{url}@{branch}"], check=True)'
+    )
+
+
+def install_cell() -> nbformat.NotebookNode:
+    """A fresh install cell, tagged for the book."""
+    cell = nbformat.v4.new_code_cell(install_cell_source())
+    cell.metadata["tags"] = list(INSTALL_CELL_TAGS)
+    return cell
+
+
+def notebook_paths(include_masters: bool = True) -> list[Path]:
+    """Every notebook of the course, students' first, then the Problems' masters."""
+    paths = sorted((ROOT / "notebooks").glob("*.ipynb"))
+    if include_masters:
+        paths += sorted((ROOT / "notebooks" / "masters").glob("*.ipynb"))
+    return paths
+
+
+def save_without_outputs(nb: nbformat.NotebookNode, path: Path) -> None:
+    """Write a notebook with outputs and execution counts stripped (how they are committed)."""
+    for cell in nb.cells:
+        if cell.cell_type == "code":
+            cell.outputs = []
+            cell.execution_count = None
+    nb.metadata.setdefault("kernelspec", {"name": "python3", "display_name": "Python 3", "language": "python"})
+    nbformat.write(nb, str(path))
