@@ -68,8 +68,8 @@ def make_pi_speed(Kp: float, Ki: float, omega_d: float, theta0: float = 0.0) -> 
 
     The angle is the integral of the speed, so the integral term is
     :math:`K_i(\omega_d t - (\theta - \theta_0))` and the law needs no extra state.
-    On :math:`M\dot\omega + b\omega = \tau` the integrated error :math:`\epsilon` obeys
-    :math:`M\ddot\epsilon + (b + K_p)\dot\epsilon + K_i\epsilon = 0`, so
+    On :math:`M\dot\omega + b\omega = \tau` the speed error :math:`e = \omega_d - \omega` obeys
+    :math:`M\ddot e + (b + K_p)\dot e + K_i e = 0`, so
     :func:`labsupport.gains.pd_gains` designs (Ki, Kp) exactly as it designs (Kp, Kd) for PD.
     """
 

@@ -1,0 +1,155 @@
+"""Task 1: the analytic single joint, its controllers and gain design, against closed forms."""
+
+import numpy as np
+import pytest
+
+from labsupport import gains, metrics
+from labsupport.controllers.single_joint import (make_computed_torque, make_feedforward,
+                                                 make_pd, make_pi_speed)
+from labsupport.plants import SingleJoint
+from labsupport.trajectories import sinusoid, versine
+
+HORIZONTAL = SingleJoint(g=0.0)
+VERTICAL = SingleJoint(g=9.81)
+
+
+def test_first_order_step_response_matches_closed_form():
+    tau = 1.0
+    log = HORIZONTAL.simulate(lambda t, x: tau, 30.0, rtol=1e-11, atol=1e-12)
+    tau_c, omega_ss = HORIZONTAL.M / HORIZONTAL.b, tau / HORIZONTAL.b
+    expected = omega_ss * (1 - np.exp(-log.t / tau_c))
+    assert np.max(np.abs(log.theta_dot - expected)) < 1e-6
+    assert tau_c == pytest.approx(5.0) and omega_ss == pytest.approx(10.0)
+
+
+def test_free_vertical_arm_settles_hanging_down():
+    log = VERTICAL.simulate(lambda t, x: 0.0, 60.0, state0=(np.pi / 3, 0.0))
+    assert log.theta[-1] == pytest.approx(-np.pi / 2, abs=1e-2)
+    # energy only decreases under viscous friction
+    energy = 0.5 * VERTICAL.M * log.theta_dot**2 + VERTICAL.m * VERTICAL.g * VERTICAL.r * np.sin(log.theta)
+    assert np.all(np.diff(energy) < 1e-9)
+
+
+def test_pd_meets_overshoot_and_settling_specification():
+    zeta = gains.damping_for_overshoot(10.0)
+    wn = gains.exact_settling_frequency(zeta, 2.0)
+    g = gains.pd_gains(HORIZONTAL.M, HORIZONTAL.b, wn, zeta)
+    theta_d = np.pi / 2
+    log = HORIZONTAL.simulate(make_pd(g.Kp, g.Kd, theta_d), 8.0, rtol=1e-10, atol=1e-12)
+    os = metrics.overshoot(log.theta, theta_d, 0.0)
+    ts = metrics.settling_time(log.t, log.theta, theta_d, 0.0)
+    assert abs(os - 10.0) < 0.5
+    assert abs(ts - 2.0) < 0.05 * 2.0
+
+
+def test_lab_envelope_rule_settles_early():
+    """The lab's t_s = 4/(zeta wn) rule: its 'ts = 2 s' design settles in about 1.75 s."""
+    (g, so) = gains.spec_gains(HORIZONTAL.M, HORIZONTAL.b, 10.0, 2.0)
+    log = HORIZONTAL.simulate(make_pd(g.Kp, g.Kd, np.pi / 2), 8.0, rtol=1e-10, atol=1e-12)
+    ts = metrics.settling_time(log.t, log.theta, np.pi / 2, 0.0)
+    assert ts == pytest.approx(gains.step_settling_time(so.wn, so.zeta), abs=2e-3)
+    assert ts < 1.8
+
+
+def test_step_response_matches_second_order_closed_form():
+    g = gains.pd_gains(HORIZONTAL.M, HORIZONTAL.b, 3.0, 0.4)
+    log = HORIZONTAL.simulate(make_pd(g.Kp, g.Kd, 1.0), 5.0, rtol=1e-10, atol=1e-12)
+    assert np.max(np.abs(log.theta - metrics.second_order_step(log.t, 3.0, 0.4))) < 1e-7
+
+
+def test_computed_torque_with_exact_model_tracks_sinusoid():
+    g = gains.pd_gains(VERTICAL.M, VERTICAL.b, 2.898, 0.69)
+    log = VERTICAL.simulate(make_computed_torque(VERTICAL, g.Kp, g.Kd, sinusoid), 4 * np.pi,
+                            state0=sinusoid(0.0)[:2])
+    assert np.max(np.abs(log.theta - sinusoid(log.t).pos)) < 1e-5
+
+
+def test_feedforward_with_exact_model_is_perfect_and_wrong_model_drifts():
+    ref = lambda t: versine(t, np.pi / 2)
+    exact = VERTICAL.simulate(make_feedforward(VERTICAL, ref), np.pi, state0=ref(0.0)[:2])
+    wrong = VERTICAL.simulate(make_feedforward(SingleJoint(r=0.08, g=9.81), ref), np.pi,
+                              state0=ref(0.0)[:2])
+    assert np.max(np.abs(exact.theta - ref(exact.t).pos)) < 1e-5
+    # Under-compensated gravity in the upper half-plane: the link lags (falls behind) the reference.
+    assert (wrong.theta - ref(wrong.t).pos)[-1] < -0.05
+
+
+def test_pi_speed_control_matches_closed_form():
+    wn, zeta, omega_d = 2.0, 0.8, 3.0
+    g = gains.pd_gains(HORIZONTAL.M, HORIZONTAL.b, wn, zeta)   # Kp -> Ki, Kd -> Kp for PI
+    Kp, Ki = g.Kd, g.Kp
+    log = HORIZONTAL.simulate(make_pi_speed(Kp, Ki, omega_d), 8.0, rtol=1e-10, atol=1e-12)
+    # speed error e = omega_d - omega: M e'' + (b + Kp) e' + Ki e = 0, e(0) = omega_d, e'(0) = -Kp omega_d / M
+    e = metrics.second_order_error(log.t, omega_d, -Kp * omega_d / HORIZONTAL.M, wn, zeta)
+    assert np.max(np.abs((omega_d - log.theta_dot) - e)) < 1e-7
+    assert log.theta_dot[-1] == pytest.approx(omega_d, abs=1e-3)
+
+
+@pytest.mark.parametrize("M,b", [(0.5, 0.1), (2.0, 0.0), (0.3, 0.05)])
+@pytest.mark.parametrize("wn,zeta", [(2.523, 1.0), (3.383, 0.591), (10.0, 0.3)])
+def test_gain_design_round_trips(M, b, wn, zeta):
+    g = gains.pd_gains(M, b, wn, zeta)
+    back = gains.second_order(M, b, g.Kp, g.Kd)
+    assert back.wn == pytest.approx(wn, rel=1e-12) and back.zeta == pytest.approx(zeta, rel=1e-12)
+    assert gains.ct_gains(wn, zeta) == pytest.approx((wn**2, 2 * zeta * wn))
+
+
+def test_lab_gain_figures():
+    m1 = gains.actuator_limited_gains(0.5, 0.1, 5.0, np.pi / 2)
+    so1 = gains.second_order(0.5, 0.1, *m1)
+    assert (round(m1.Kp, 3), round(m1.Kd, 3), round(so1.wn, 3), round(so1.zeta, 3)) == (3.183, 2.423, 2.523, 1.0)
+    g2, so2 = gains.spec_gains(0.5, 0.1, 10.0, 2.0)
+    assert (round(so2.zeta, 3), round(so2.wn, 3), round(g2.Kp, 3), round(g2.Kd, 3)) == (0.591, 3.383, 5.723, 1.9)
+    assert round(g2.Kp * np.pi / 2, 2) == 8.99
+    g3, so3 = gains.spec_gains(0.5, 0.1, 5.0, 2.0)
+    assert (round(g3.Kp, 3), round(g3.Kd, 3), round(so3.zeta, 3), round(so3.wn, 3)) == (4.199, 1.9, 0.69, 2.898)
+
+
+def test_lab_sinusoid_rms_figures():
+    g, _ = gains.spec_gains(0.5, 0.1, 5.0, 2.0)
+    wrong = SingleJoint(r=0.08, g=9.81)
+    fb = VERTICAL.simulate(make_pd(g.Kp, g.Kd, sinusoid), 4 * np.pi, state0=sinusoid(0.0)[:2])
+    ct = VERTICAL.simulate(make_computed_torque(wrong, g.Kp, g.Kd, sinusoid), 4 * np.pi,
+                           state0=sinusoid(0.0)[:2])
+    rms_fb = metrics.rms(np.degrees(fb.theta - sinusoid(fb.t).pos))
+    rms_ct = metrics.rms(np.degrees(ct.theta - sinusoid(ct.t).pos))
+    assert round(rms_fb, 3) == 10.891 and round(rms_ct, 3) == 2.253
+    assert round(100 * (1 - rms_ct / rms_fb), 1) == 79.3
+
+
+def test_cumulative_effort_of_constant_torque():
+    t = np.linspace(0, 2, 2001)
+    assert metrics.cumulative_effort(t, np.full_like(t, 3.0))[-1] == pytest.approx(18.0)
+
+
+@pytest.mark.parametrize("kwargs,word", [({"M": 0.0}, "M"), ({"M": -1.0}, "M"), ({"b": -0.1}, "b"),
+                                         ({"m": float("nan")}, "m")])
+def test_bad_parameters_are_named(kwargs, word):
+    with pytest.raises(ValueError, match=rf"^{word} "):
+        SingleJoint(**kwargs)
+
+
+def _assert_no_scipy_frames(excinfo):
+    assert not any("scipy" in str(entry.path) for entry in excinfo.traceback)
+
+
+def test_wrong_shaped_state_is_named():
+    with pytest.raises(ValueError, match="state0") as excinfo:
+        HORIZONTAL.simulate(lambda t, x: 0.0, 1.0, state0=(0.0, 0.0, 0.0))
+    _assert_no_scipy_frames(excinfo)
+
+
+@pytest.mark.parametrize("bad", [float("nan"), None, np.array([1.0, 2.0])])
+def test_bad_torque_is_named_without_scipy_traceback(bad):
+    with pytest.raises(ValueError, match="tau|torque") as excinfo:
+        HORIZONTAL.simulate(lambda t, x: bad, 1.0)
+    _assert_no_scipy_frames(excinfo)
+
+
+def test_bad_gain_design_inputs():
+    with pytest.raises(ValueError, match="percent_overshoot"):
+        gains.damping_for_overshoot(0.0)
+    with pytest.raises(ValueError, match="Kd"):
+        gains.pd_gains(0.5, 5.0, 1.0, 0.1)
+    with pytest.raises(ValueError, match="tau_max"):
+        gains.actuator_limited_gains(0.5, 0.1, -1.0, 1.0)
