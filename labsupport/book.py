@@ -11,7 +11,13 @@ from typing import Any
 
 
 def glue(name: str, value: Any, display: bool = False) -> Any:
-    """Record ``value`` under ``name`` for the book's ``{glue:...}`` roles; returns ``value``."""
+    """Record ``value`` under ``name`` for the book's ``{glue:...}`` roles; returns ``value``.
+
+    NumPy scalars are stored as Python numbers, so format specs such as ``:.3f`` work on them
+    (NumPy 2 writes ``np.float64(1.0)`` as their text form otherwise).
+    """
+    if hasattr(value, "item") and getattr(value, "shape", None) == ():
+        value = value.item()
     try:
         from myst_nb import glue as _glue
     except ImportError:  # Colab or a bare kernel: nothing to record into
