@@ -1,0 +1,150 @@
+"""labsupport.dynamics against independent computations (MuJoCo's own products, finite differences)."""
+
+import mujoco
+import numpy as np
+import pytest
+
+from labsupport import dynamics
+
+# A small spatial 3-DOF arm with offsets, so that M, J and Jdot are all non-trivial.
+ARM = """
+<mujoco>
+  <option gravity="0 0 -9.81"/>
+  <worldbody>
+    <body>
+      <joint name="a" type="hinge" axis="0 0 1"/>
+      <geom type="capsule" fromto="0 0 0 0 0 0.4" size="0.04" mass="1.2"/>
+      <body pos="0 0.05 0.4">
+        <joint name="b" type="hinge" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.03" mass="0.9"/>
+        <body pos="0.5 0 0">
+          <joint name="c" type="hinge" axis="0 1 0"/>
+          <geom type="capsule" fromto="0 0 0 0.4 0 0.1" size="0.02" mass="0.6"/>
+          <site name="tip" pos="0.4 0 0.1"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.fixture
+def arm():
+    model = mujoco.MjModel.from_xml_string(ARM)
+    return model, mujoco.MjData(model)
+
+
+def _set_state(model, data, rng):
+    data.qpos[:] = rng.uniform(-np.pi, np.pi, model.nq)
+    data.qvel[:] = rng.normal(0, 2, model.nv)
+    mujoco.mj_forward(model, data)
+
+
+def _tip(model, data, q):
+    scratch = mujoco.MjData(model)
+    scratch.qpos[:] = q
+    mujoco.mj_kinematics(model, scratch)
+    return scratch.site_xpos[0].copy()
+
+
+def test_mass_matrix_matches_mujoco_products(arm):
+    model, data = arm
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        _set_state(model, data, rng)
+        M = dynamics.mass_matrix(model, data)
+        columns = np.empty_like(M)
+        for j in range(model.nv):
+            col = np.zeros(model.nv)
+            mujoco.mj_mulM(model, data, col, np.eye(model.nv)[j])
+            columns[:, j] = col
+        np.testing.assert_allclose(M, columns, atol=1e-12)
+        np.testing.assert_allclose(M, M.T, atol=1e-12)
+        assert np.all(np.linalg.eigvalsh(M) > 0)
+        x = rng.normal(size=model.nv)
+        np.testing.assert_allclose(dynamics.solve_mass(model, data, M @ x), x, atol=1e-10)
+
+
+def test_mass_matrix_uses_the_mujoco3_signature_when_qM_exists(monkeypatch):
+    """On MuJoCo 3.x mj_fullM is (model, dst, qM); the function must call it that way."""
+    calls = []
+
+    def fake_fullm(model, dst, qm):
+        calls.append(qm)
+        dst[:] = 7.0
+
+    class Data3:
+        qM = np.array([1.0, 2.0])
+
+    class Model:
+        nv = 2
+
+    monkeypatch.setattr(dynamics, "FULLM_TAKES_DATA", False)
+    monkeypatch.setattr(dynamics.mujoco, "mj_fullM", fake_fullm)
+    out = dynamics.mass_matrix(Model(), Data3())
+    assert calls and calls[0] is Data3.qM and np.all(out == 7.0)
+
+
+def test_bias_forces_are_gravity_at_rest(arm):
+    model, data = arm
+    data.qpos[:] = [0.3, -0.4, 0.8]
+    mujoco.mj_forward(model, data)
+    # gravity torque = -dV/dq, from finite differences of the potential energy
+    def potential(q):
+        d = mujoco.MjData(model)
+        d.qpos[:] = q
+        mujoco.mj_forward(model, d)
+        return -sum(model.body_mass[i] * model.opt.gravity @ d.xipos[i] for i in range(model.nbody))
+    h = 1e-6
+    grad = np.array([(potential(data.qpos + h * e) - potential(data.qpos - h * e)) / (2 * h) for e in np.eye(3)])
+    np.testing.assert_allclose(dynamics.bias_forces(data), grad, atol=1e-6)
+
+
+def test_site_jacobian_matches_finite_differences(arm):
+    model, data = arm
+    rng = np.random.default_rng(1)
+    for _ in range(10):
+        _set_state(model, data, rng)
+        J = dynamics.site_jacobian(model, data, "tip")
+        h = 1e-6
+        fd = np.column_stack([(_tip(model, data, data.qpos + h * e) - _tip(model, data, data.qpos - h * e)) / (2 * h)
+                              for e in np.eye(model.nv)])
+        np.testing.assert_allclose(J[:3], fd, atol=1e-8)
+
+
+def test_jdot_qdot_matches_finite_difference_of_J_qdot(arm):
+    model, data = arm
+    rng = np.random.default_rng(2)
+    for _ in range(10):
+        _set_state(model, data, rng)
+        h = 1e-6
+
+        def j_qdot(q):
+            d = mujoco.MjData(model)
+            d.qpos[:] = q
+            mujoco.mj_kinematics(model, d)
+            mujoco.mj_comPos(model, d)
+            return dynamics.site_jacobian(model, d, "tip") @ data.qvel
+
+        fd = (j_qdot(data.qpos + h * data.qvel) - j_qdot(data.qpos - h * data.qvel)) / (2 * h)
+        np.testing.assert_allclose(dynamics.site_jdot_qdot(model, data, "tip"), fd, atol=1e-6)
+
+
+def test_task_space_inertia_equals_M_Jinv_for_a_square_jacobian(arm):
+    model, data = arm
+    rng = np.random.default_rng(3)
+    for _ in range(10):
+        _set_state(model, data, rng)
+        J = dynamics.site_jacobian(model, data, "tip")[:3]
+        if abs(np.linalg.det(J)) < 1e-3:
+            continue
+        lam = dynamics.task_space_inertia(model, data, J)
+        M = dynamics.mass_matrix(model, data)
+        np.testing.assert_allclose(J.T @ lam, M @ np.linalg.inv(J), rtol=1e-8, atol=1e-10)
+
+
+def test_unknown_site_is_named(arm):
+    model, data = arm
+    with pytest.raises(ValueError, match="'hand'.*tip"):
+        dynamics.site_jacobian(model, data, "hand")
