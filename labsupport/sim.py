@@ -278,3 +278,17 @@ def _site_positions(model, site_id, q):
         mujoco.mj_kinematics(model, scratch)
         out[k] = scratch.site_xpos[site_id]
     return out
+
+
+def from_state_torque(torque: Callable[[float, np.ndarray], float]) -> Controller:
+    r"""Adapt a single-joint law ``torque(t, (theta, theta_dot))`` (as in
+    :mod:`labsupport.controllers.single_joint`, written for the analytic plant) to a MuJoCo
+    controller ``controller(model, data) -> tau`` of shape ``(1,)``.
+    """
+    tau = np.zeros(1)
+
+    def controller(model, data):
+        tau[0] = torque(data.time, np.array((data.qpos[0], data.qvel[0])))
+        return tau
+
+    return controller

@@ -1,0 +1,222 @@
+r"""The figure layouts the notebooks share, and planar-arm animations as MP4 video.
+
+Every function returns the Matplotlib figure (or the video frames) and shows nothing by
+itself, so a notebook decides what to display. Videos are drawn with Matplotlib's Agg
+canvas frame by frame and encoded by :mod:`mediapy` (H.264 MP4), a few hundred kilobytes
+each, instead of frame-by-frame HTML.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping, Sequence
+
+import matplotlib
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from labsupport.metrics import cumulative_effort
+
+
+def _figure(figsize, nrows=1, ncols=1, **kwargs):
+    """A figure not attached to pyplot (no window, no global state), with its axes."""
+    fig = Figure(figsize=figsize, layout="constrained")
+    axes = fig.subplots(nrows, ncols, squeeze=False, **kwargs)
+    return fig, axes
+
+
+def joint_tracking_figure(t, desired, runs: Mapping[str, np.ndarray], title: str = "", unit: str = "deg"):
+    r"""Two stacked panels: the angle of each run beside the desired one, and the error
+    :math:`\theta - \theta_d`.
+
+    Args:
+        t: (N,) time [s].
+        desired: (N,) desired angle, in ``unit``.
+        runs: label -> (N,) angle, in ``unit``.
+    """
+    fig, axes = _figure((8, 5), 2, 1, sharex=True)
+    top, bottom = axes[:, 0]
+    top.plot(t, desired, "k--", lw=1.5, label="desired")
+    for label, theta in runs.items():
+        top.plot(t, theta, lw=1.6, label=label)
+        bottom.plot(t, theta - desired, lw=1.6, label=label)
+    top.set_ylabel(rf"$\theta$ [{unit}]")
+    bottom.set_ylabel(rf"$\theta - \theta_d$ [{unit}]")
+    bottom.axhline(0.0, color="0.5", lw=0.8, ls=":")
+    bottom.set_xlabel("time [s]")
+    for ax in (top, bottom):
+        ax.grid(True, alpha=0.4)
+        ax.legend(fontsize=8)
+    if title:
+        top.set_title(title, fontsize=10)
+    return fig
+
+
+def effort_figure(t, torques: Mapping[str, np.ndarray], limit: float | None = None):
+    r"""Applied torque of each run and its cumulative effort :math:`\int_0^t \lVert\tau\rVert^2 dt'`."""
+    fig, axes = _figure((9, 3.2), 1, 2)
+    left, right = axes[0]
+    for label, tau in torques.items():
+        left.plot(t, tau, lw=1.4, label=label)
+        right.plot(t, cumulative_effort(t, tau), lw=1.6, label=label)
+    if limit is not None:
+        for sign in (-1, 1):
+            left.axhline(sign * limit, color="r", lw=0.8, ls="--")
+    left.set(xlabel="time [s]", ylabel=r"$\tau$ [N·m]", title="applied torque")
+    right.set(xlabel="time [s]", ylabel=r"$\int\tau^2\,dt$ [N²·m²·s]", title="cumulative effort")
+    for ax in (left, right):
+        ax.grid(True, alpha=0.4)
+        ax.legend(fontsize=8)
+    return fig
+
+
+def _workspace(ax, reach_min: float, reach_max: float):
+    phi = np.linspace(0, 2 * np.pi, 200)
+    for radius in (reach_min, reach_max):
+        ax.plot(radius * np.cos(phi), radius * np.sin(phi), "k--", lw=0.8, alpha=0.25)
+
+
+def reaching_figure(runs: Mapping[str, object], q_d, target, reach: tuple[float, float]):
+    r"""Task 3.1's six panels for several runs (``sim.Log`` with ``ee``): the two joint
+    errors in degrees, the end-effector path, the two joint torques, and the distance to
+    the target in millimetres.
+    """
+    fig, axes = _figure((12, 6.5), 2, 3)
+    target = np.asarray(target, dtype=float)
+    for j in range(2):
+        ax = axes[0, j]
+        for label, log in runs.items():
+            ax.plot(log.t, np.degrees(log.q[:, j] - q_d[j]), lw=1.4, label=label)
+        ax.axhline(0.0, color="k", lw=0.8, ls="--")
+        ax.set(xlabel="time [s]", ylabel=f"$q_{j + 1} - q_{{d,{j + 1}}}$ [deg]", title=f"joint {j + 1} error")
+        ax = axes[1, j]
+        for label, log in runs.items():
+            ax.plot(log.t, log.tau[:, j], lw=1.4, label=label)
+        ax.set(xlabel="time [s]", ylabel=rf"$\tau_{j + 1}$ [N·m]", title=f"joint {j + 1} torque")
+    ax = axes[0, 2]
+    _workspace(ax, *reach)
+    first = next(iter(runs.values()))
+    for label, log in runs.items():
+        ax.plot(log.ee[:, 0], log.ee[:, 1], lw=1.4, label=label)
+    ax.plot(*first.ee[0, :2], "go", ms=7, label="start")
+    ax.plot(*target, "r*", ms=12, label="target")
+    ax.set_aspect("equal")
+    ax.set(xlabel="x [m]", ylabel="y [m]", title="end-effector path")
+    ax = axes[1, 2]
+    for label, log in runs.items():
+        ax.semilogy(log.t, 1000 * np.linalg.norm(log.ee[:, :2] - target, axis=1), lw=1.4, label=label)
+    ax.set(xlabel="time [s]", ylabel="distance [mm]", title="distance to the target")
+    for ax in axes.flat:
+        ax.grid(True, alpha=0.4)
+        ax.legend(fontsize=8)
+    return fig
+
+
+def circle_tracking_figure(runs: Mapping[str, object], desired_path):
+    r"""Task 3.2's three panels for several runs (``sim.Log`` with ``ee`` and ``err``): the
+    path against the desired circle, the norm of the Cartesian error in millimetres, and
+    the joint torques.
+    """
+    fig, axes = _figure((12, 3.8), 1, 3)
+    ax = axes[0, 0]
+    ax.plot(desired_path[:, 0], desired_path[:, 1], "k--", lw=1, label="desired")
+    for label, log in runs.items():
+        ax.plot(log.ee[:, 0], log.ee[:, 1], lw=1.2, alpha=0.8, label=label)
+    ax.set_aspect("equal")
+    ax.set(xlabel="x [m]", ylabel="y [m]", title="end-effector path")
+    ax = axes[0, 1]
+    for label, log in runs.items():
+        ax.plot(log.t, 1000 * np.linalg.norm(log.err, axis=1), lw=1.2, label=label)
+    ax.set(xlabel="time [s]", ylabel=r"$\lVert x_d - x\rVert$ [mm]", title="Cartesian error")
+    ax = axes[0, 2]
+    for i, (label, log) in enumerate(runs.items()):
+        for j, style in enumerate(("-", "--")):
+            ax.plot(log.t, log.tau[:, j], style, color=f"C{i}", lw=1, label=rf"{label} $\tau_{j + 1}$")
+    ax.set(xlabel="time [s]", ylabel=r"$\tau$ [N·m]", title="joint torques")
+    for ax in axes.flat:
+        ax.grid(True, alpha=0.4)
+        ax.legend(fontsize=7)
+    return fig
+
+
+# ---------------------------------------------------------------------------------------
+# Planar-arm animation
+# ---------------------------------------------------------------------------------------
+
+def frame_indices(n_samples: int, dt: float, fps: float, speed: float = 1.0) -> np.ndarray:
+    """Which samples (spaced ``dt`` seconds) to show for a video at ``fps`` played ``speed`` times real time."""
+    if n_samples <= 0:
+        raise ValueError("there are no samples to animate")
+    stride = max(1, int(round(speed / (fps * dt))))
+    return np.arange(0, n_samples, stride)
+
+
+def planar_arm_frames(panels: Sequence[Mapping], arm, t=None, frames: np.ndarray | None = None,
+                      size: tuple[int, int] = (480, 240), limits=None) -> np.ndarray:
+    r"""RGB frames of one or more 2R arms side by side, drawn with Matplotlib.
+
+    Args:
+        panels: one dict per panel with ``q`` ((N, 2) joint angles) and ``title``, and
+            optionally ``color``, ``target`` (a fixed point), ``ref`` ((N, 2) moving
+            reference point) and ``path`` ((M, 2) a fixed curve, e.g. the desired circle).
+            The trail of the end effector is drawn behind the arm.
+        arm: :class:`labsupport.kinematics.planar_2r.Planar2R`.
+        t: (N,) times, printed in the corner.
+        frames: sample indices to draw (all by default, see :func:`frame_indices`).
+        size: (width, height) of the video in pixels (even numbers, for H.264).
+        limits: ((xmin, xmax), (ymin, ymax)); the whole workspace by default.
+
+    Returns:
+        ``(F, height, width, 3)`` uint8 array, for :func:`mediapy.show_video`.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from labsupport.kinematics.planar_2r import elbow_position, forward_kinematics
+
+    width, height = size
+    if width % 2 or height % 2:
+        raise ValueError(f"size must be even in both directions for H.264, got {size}")
+    dpi = 80
+    fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
+    canvas = FigureCanvasAgg(fig)
+    axes = fig.subplots(1, len(panels), squeeze=False)[0]
+    fig.subplots_adjust(left=0.02, right=0.98, bottom=0.02, top=0.9, wspace=0.05)
+    n = len(panels[0]["q"])
+    frames = np.arange(n) if frames is None else np.asarray(frames)
+    reach = arm.l1 + arm.l2 + 0.05
+    (x0, x1), (y0, y1) = limits if limits is not None else ((-reach, reach), (-reach, reach))
+
+    artists = []
+    for i, (ax, panel) in enumerate(zip(axes, panels)):
+        color = panel.get("color", f"C{i}")
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(y0, y1)
+        ax.set_aspect("equal")
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ax.set_title(panel["title"], fontsize=9)
+        _workspace(ax, abs(arm.l1 - arm.l2), arm.l1 + arm.l2)
+        if "path" in panel:
+            ax.plot(panel["path"][:, 0], panel["path"][:, 1], "k--", lw=0.8, alpha=0.5)
+        if "target" in panel:
+            ax.plot(*panel["target"], "r*", ms=10)
+        q = np.asarray(panel["q"], dtype=float)
+        ee, elbow = forward_kinematics(q, arm), elbow_position(q, arm)
+        (trail,) = ax.plot([], [], "-", color=color, lw=1, alpha=0.6)
+        (links,) = ax.plot([], [], "o-", color=color, lw=3, ms=4)
+        (ref,) = ax.plot([], [], "r*", ms=8)
+        clock = ax.text(0.03, 0.04, "", transform=ax.transAxes, fontsize=8)
+        artists.append((ee, elbow, panel.get("ref"), trail, links, ref, clock))
+
+    out = np.empty((len(frames), height, width, 3), dtype=np.uint8)
+    for f, k in enumerate(frames):
+        for ee, elbow, moving_ref, trail, links, ref, clock in artists:
+            trail.set_data(ee[: k + 1, 0], ee[: k + 1, 1])
+            links.set_data([0.0, elbow[k, 0], ee[k, 0]], [0.0, elbow[k, 1], ee[k, 1]])
+            if moving_ref is not None:
+                ref.set_data([moving_ref[k, 0]], [moving_ref[k, 1]])
+            if t is not None:
+                clock.set_text(f"t = {t[k]:.2f} s")
+        canvas.draw()
+        out[f] = np.asarray(canvas.buffer_rgba())[..., :3]
+    return out

@@ -1,0 +1,154 @@
+"""2R planar arm: the MJCF model against closed forms, and the kinematics against finite
+differences and round trips."""
+
+import mujoco
+import numpy as np
+import pytest
+
+import labsupport  # noqa: F401  (chooses the GL backend before mujoco renders anything)
+from labsupport.dynamics import mass_matrix
+from labsupport.kinematics import planar_2r as k2
+from labsupport.plants import load_model
+
+M1, M2, L1, L2 = 1.0, 0.8, 0.5, 0.4
+
+
+def uniform_rod_mass_matrix(q2):
+    r"""Closed form for two uniform rods (CoM at l/2, I = m l^2/12 about the CoM):
+    M11 = I1 + I2 + m1 lc1^2 + m2 (l1^2 + lc2^2 + 2 l1 lc2 cos q2), M12 = I2 + m2 (lc2^2 + l1 lc2 cos q2),
+    M22 = I2 + m2 lc2^2."""
+    lc1, lc2 = L1 / 2, L2 / 2
+    i1, i2 = M1 * L1**2 / 12, M2 * L2**2 / 12
+    c2 = np.cos(q2)
+    m11 = i1 + i2 + M1 * lc1**2 + M2 * (L1**2 + lc2**2 + 2 * L1 * lc2 * c2)
+    m12 = i2 + M2 * (lc2**2 + L1 * lc2 * c2)
+    m22 = i2 + M2 * lc2**2
+    return np.array([[m11, m12], [m12, m22]])
+
+
+@pytest.fixture(scope="module")
+def arm_model():
+    return load_model("planar_2r")
+
+
+def test_model_parameters(arm_model):
+    model, _ = arm_model
+    assert model.nv == 2 and model.nu == 2
+    assert np.allclose(model.opt.gravity, 0.0)
+    assert model.opt.timestep == 0.002
+    assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
+    np.testing.assert_allclose(model.body_mass[1:], [M1, M2])
+
+
+def test_mass_matrix_matches_uniform_rods(arm_model):
+    model, data = arm_model
+    rng = np.random.default_rng(0)
+    for q in rng.uniform(-np.pi, np.pi, size=(50, 2)):
+        data.qpos[:] = q
+        mujoco.mj_forward(model, data)
+        np.testing.assert_allclose(mass_matrix(model, data), uniform_rod_mass_matrix(q[1]), rtol=0, atol=1e-10)
+
+
+def test_site_and_fk_agree(arm_model):
+    model, data = arm_model
+    rng = np.random.default_rng(1)
+    for q in rng.uniform(-np.pi, np.pi, size=(20, 2)):
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        np.testing.assert_allclose(data.site("end_effector").xpos[:2], k2.forward_kinematics(q), atol=1e-12)
+
+
+def test_jacobian_matches_finite_differences():
+    rng = np.random.default_rng(2)
+    eps = 1e-6
+    for q in rng.uniform(-np.pi, np.pi, size=(30, 2)):
+        fd = np.column_stack([(k2.forward_kinematics(q + eps * e) - k2.forward_kinematics(q - eps * e)) / (2 * eps)
+                              for e in np.eye(2)])
+        np.testing.assert_allclose(k2.jacobian(q), fd, atol=1e-8)
+
+
+def test_jacobian_matches_mujoco(arm_model):
+    from labsupport.dynamics import site_jacobian
+    model, data = arm_model
+    q = np.array([0.4, -1.1])
+    data.qpos[:] = q
+    mujoco.mj_forward(model, data)
+    np.testing.assert_allclose(site_jacobian(model, data, "end_effector")[:2], k2.jacobian(q), atol=1e-12)
+
+
+def test_jdot_qdot_matches_finite_difference_of_j_qdot():
+    r"""d/dt (J(q) qdot) at constant qdot is Jdot qdot: central difference along q + s qdot."""
+    rng = np.random.default_rng(3)
+    eps = 1e-6
+    for q, qdot in zip(rng.uniform(-np.pi, np.pi, size=(30, 2)), rng.normal(0, 2, size=(30, 2))):
+        fd = (k2.jacobian(q + eps * qdot) @ qdot - k2.jacobian(q - eps * qdot) @ qdot) / (2 * eps)
+        np.testing.assert_allclose(k2.jdot_qdot(q, qdot), fd, atol=1e-7)
+
+
+def test_vectorised_calls_match_single_ones():
+    rng = np.random.default_rng(4)
+    q, qdot = rng.uniform(-3, 3, size=(5, 2)), rng.normal(size=(5, 2))
+    for i in range(5):
+        np.testing.assert_allclose(k2.jacobian(q)[i], k2.jacobian(q[i]))
+        np.testing.assert_allclose(k2.jdot_qdot(q, qdot)[i], k2.jdot_qdot(q[i], qdot[i]))
+
+
+@pytest.mark.parametrize("branch", k2.BRANCHES)
+def test_ik_round_trip_on_1000_reachable_points(branch):
+    rng = np.random.default_rng(5)
+    radius = rng.uniform(k2.LAB_ARM.reach_min + 1e-6, k2.LAB_ARM.reach_max - 1e-6, 1000)
+    angle = rng.uniform(-np.pi, np.pi, 1000)
+    x = radius[:, None] * np.column_stack([np.cos(angle), np.sin(angle)])
+    q = k2.inverse_kinematics(x, branch=branch)
+    np.testing.assert_allclose(k2.forward_kinematics(q), x, atol=1e-9)
+    assert np.all(q[:, 1] >= 0) if branch == "up" else np.all(q[:, 1] <= 0)
+
+
+def test_the_two_branches_are_mirror_images():
+    x = np.array([0.6, 0.3])
+    up, down = k2.inverse_kinematics(x, branch="up"), k2.inverse_kinematics(x, branch="down")
+    assert up[1] == pytest.approx(-down[1])
+    phi = np.arctan2(x[1], x[0])        # both elbows mirror about the line to the target
+    assert up[0] - phi == pytest.approx(-(down[0] - phi))
+
+
+@pytest.mark.parametrize("x", [(0.95, 0.0), (0.0, 0.05), (0.0, 0.0), (-0.7, 0.7)])
+def test_unreachable_target_raises_clear_error(x):
+    with pytest.raises(ValueError, match="outside the workspace"):
+        k2.inverse_kinematics(x)
+
+
+def test_clip_moves_an_unreachable_target_to_the_boundary_and_warns():
+    with pytest.warns(RuntimeWarning, match="clipped"):
+        q = k2.inverse_kinematics([1.2, 0.0], clip=True)
+    np.testing.assert_allclose(k2.forward_kinematics(q), [0.9, 0.0], atol=1e-12)
+
+
+def test_bad_arguments():
+    with pytest.raises(ValueError, match="branch"):
+        k2.inverse_kinematics([0.5, 0.2], branch="left")
+    with pytest.raises(ValueError, match="2 components"):
+        k2.forward_kinematics([0.1, 0.2, 0.3])
+    with pytest.raises(ValueError, match="l2"):
+        k2.Planar2R(0.5, -0.4)
+
+
+def test_joint_reference_reproduces_the_cartesian_one():
+    from labsupport.trajectories import circle_2d
+    t = np.linspace(0, 6, 301)
+    ref = circle_2d(t, (0.5, 0.2), 0.15, 6.0)
+    jref = k2.joint_reference(ref)
+    np.testing.assert_allclose(k2.forward_kinematics(jref.pos), ref.pos, atol=1e-12)
+    np.testing.assert_allclose(np.einsum("nij,nj->ni", k2.jacobian(jref.pos), jref.vel), ref.vel, atol=1e-12)
+    xddot = np.einsum("nij,nj->ni", k2.jacobian(jref.pos), jref.acc) + k2.jdot_qdot(jref.pos, jref.vel)
+    np.testing.assert_allclose(xddot, ref.acc, atol=1e-12)
+    # and qdot_d is the time derivative of q_d (central differences)
+    dt = t[1] - t[0]
+    np.testing.assert_allclose(np.gradient(jref.pos, dt, axis=0)[1:-1], jref.vel[1:-1], atol=1e-3)
+
+
+def test_annulus_sample_is_seeded_and_reachable():
+    a = k2.sample_annulus(np.random.default_rng(42))
+    b = k2.sample_annulus(np.random.default_rng(42))
+    np.testing.assert_array_equal(a, b)
+    assert 0.15 <= np.linalg.norm(a) <= 0.85

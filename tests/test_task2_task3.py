@@ -1,0 +1,188 @@
+"""Tasks 2 and 3: the MuJoCo models against the analytic ones, the controllers against
+closed forms and against each other, and the lab's printed figures (within 1 %)."""
+
+from functools import partial
+
+import mujoco
+import numpy as np
+import pytest
+
+import labsupport  # noqa: F401
+from labsupport import gains, metrics, sim
+from labsupport.controllers import joint_space as js
+from labsupport.controllers import operational_space as osc
+from labsupport.controllers.single_joint import make_computed_torque, make_pd
+from labsupport.dynamics import mass_matrix
+from labsupport.kinematics import planar_2r as k2
+from labsupport.plants import SingleJoint, load_model
+from labsupport.trajectories import circle_2d, sinusoid
+
+CIRCLE = partial(circle_2d, center=(0.5, 0.2), radius=0.15, period=6.0)
+
+
+def within(value, lab, rel=0.01):
+    return abs(value - lab) <= rel * abs(lab)
+
+
+# --- Task 2: the single joint in MuJoCo ------------------------------------------------
+
+def test_single_joint_model_matches_the_analytic_one():
+    model, data = load_model("single_joint")
+    plant = SingleJoint(g=9.81)
+    for theta in np.linspace(-np.pi, np.pi, 13):
+        data.qpos[0], data.qvel[0] = theta, 0.0
+        mujoco.mj_forward(model, data)
+        # positive theta lifts the link: gravity load +m g r cos(theta)
+        assert data.qfrc_bias[0] == pytest.approx(plant.m * plant.g * plant.r * np.cos(theta), abs=1e-12)
+        assert mass_matrix(model, data)[0, 0] == pytest.approx(plant.M, abs=1e-12)
+    data.qvel[0] = 2.0
+    mujoco.mj_forward(model, data)
+    assert data.qfrc_passive[0] == pytest.approx(-plant.b * 2.0)
+    np.testing.assert_array_equal(model.actuator_ctrlrange[0], [-20.0, 20.0])
+
+
+def test_single_joint_free_response_matches_scipy():
+    """Zero torque from rest at theta = 0.3: MuJoCo (1 ms Euler) and the analytic plant agree."""
+    model, data = load_model("single_joint")
+    log = sim.simulate(model, data, lambda m, d: np.zeros(1), 1.0, q0=[0.3])
+    ref = SingleJoint(g=9.81).simulate(lambda t, x: 0.0, 1.0, state0=(0.3, 0.0), dt=1e-3)
+    np.testing.assert_allclose(log.q[:, 0], ref.theta, atol=5e-3)
+
+
+def task2_rms_deg(r_tilde, feedforward=True):
+    (Kp, Kd), _ = gains.spec_gains(0.5, 0.1, 5.0, 2.0)
+    model, data = load_model("single_joint")
+    law = (make_computed_torque(SingleJoint(r=r_tilde, g=9.81), Kp, Kd, sinusoid) if feedforward
+           else make_pd(Kp, Kd, sinusoid))
+    r0 = sinusoid(0.0)
+    log = sim.simulate(model, data, sim.from_state_torque(law), 4 * np.pi, q0=[r0.pos], qdot0=[r0.vel],
+                       torque_limit=20.0)
+    return float(np.degrees(metrics.rms(log.q[:, 0] - sinusoid(log.t).pos))), log
+
+
+def test_task2_gains():
+    (Kp, Kd), _ = gains.spec_gains(0.5, 0.1, 5.0, 2.0)
+    assert round(Kp, 3) == 4.199 and round(Kd, 3) == 1.900
+
+
+def test_task2_lab_figures():
+    matched, _ = task2_rms_deg(0.1)
+    mismatched, _ = task2_rms_deg(0.08)
+    assert within(matched, 0.0069) and f"{matched:.4f}" == "0.0069"
+    assert within(mismatched, 2.2551) and f"{mismatched:.4f}" == "2.2551"
+
+
+def test_task2_feedback_alone_is_much_worse():
+    mismatched, _ = task2_rms_deg(0.08)
+    pd_only, _ = task2_rms_deg(0.08, feedforward=False)
+    assert pd_only > 4 * mismatched
+
+
+# --- Task 3.1: reaching -----------------------------------------------------------------
+
+def reaching_runs():
+    model, data = load_model("planar_2r")
+    target = k2.sample_annulus(np.random.default_rng(42))
+    q_d = k2.inverse_kinematics(target, branch="up")
+    Kp, Kd = gains.ct_gains(10.0, 0.9)
+    runs = {}
+    for name, ctrl in (("PD", js.make_pd_setpoint(q_d, 40.0, 1.0)), ("CT", js.make_ct_setpoint(model, q_d, Kp, Kd))):
+        runs[name] = sim.simulate(model, data, ctrl, 3.0, q0=[0.2, 0.3], site="end_effector", log_after_step=True)
+    return target, q_d, runs
+
+
+def test_task3_1_target_and_final_errors():
+    target, q_d, runs = reaching_runs()
+    np.testing.assert_allclose(target, [0.64138, -0.25918], atol=1e-5)
+    np.testing.assert_allclose(np.degrees(q_d), [-56.731, 80.133], atol=1e-3)
+    final = {name: 1000 * np.linalg.norm(log.ee[-1, :2] - target) for name, log in runs.items()}
+    assert within(final["PD"], 11.877)          # PD still rings after 3 s
+    assert final["CT"] < 1e-6                   # CT has converged (e^{-27} of 1 m)
+
+
+@pytest.mark.parametrize("wn, zeta", [(10.0, 0.9), (6.0, 1.0), (8.0, 1.5)])
+def test_ct_setpoint_response_is_the_analytic_second_order_one(wn, zeta):
+    """e = q_d - q obeys e'' + 2 zeta wn e' + wn^2 e = 0 in both joints; the zero-order hold
+    over a 2 ms step is the only deviation and shrinks with the step."""
+    model, data = load_model("planar_2r")
+    q_d, q0 = np.array([-0.99, 1.4]), np.array([0.2, 0.3])
+    Kp, Kd = gains.ct_gains(wn, zeta)
+    deviation = []
+    for dt in (0.002, 0.0002):
+        model.opt.timestep = dt
+        log = sim.simulate(model, data, js.make_ct_setpoint(model, q_d, Kp, Kd), 2.0, q0=q0)
+        analytic = metrics.second_order_error(log.t, q_d - q0, [0.0, 0.0], wn, zeta)
+        deviation.append(np.abs((q_d - log.q) - analytic).max() / np.abs(q_d - q0).max())
+    assert deviation[0] < 0.005
+    assert deviation[1] < deviation[0] / 8          # first order in the step
+
+
+# --- Task 3.2: tracking -----------------------------------------------------------------
+
+def tracking_run(make, start_on_path=False, log_after_step=True, duration=12.0):
+    model, data = load_model("planar_2r")
+    q0 = k2.inverse_kinematics(CIRCLE(0.0).pos, branch="up")
+    qdot0 = np.linalg.solve(k2.jacobian(q0), CIRCLE(0.0).vel) if start_on_path else np.zeros(2)
+    Kp, Kd = gains.ct_gains(8.0, 1.0)
+    return sim.simulate(model, data, make(model, CIRCLE, Kp, Kd), duration, q0=q0, qdot0=qdot0,
+                        site="end_effector", reference=CIRCLE, log_after_step=log_after_step)
+
+
+@pytest.mark.parametrize("make, lab", [(osc.make_os_ct_2r, (0.224, 0.952)), (osc.make_ik_ct_2r, (0.224, 0.955))])
+def test_task3_2_lab_figures(make, lab):
+    rms_mm = 1000 * metrics.rms(tracking_run(make).err)
+    assert within(rms_mm[0], lab[0]) and within(rms_mm[1], lab[1])
+    assert [f"{v:.3f}" for v in rms_mm] == [f"{v:.3f}" for v in lab]
+
+
+@pytest.mark.parametrize("make", [osc.make_os_ct_2r, osc.make_ik_ct_2r])
+def test_task3_2_residual_explained_and_removed(make):
+    """ex comes from logging the state one step after the reference; ey from the arm
+    starting at rest on a moving reference. Removing both leaves micrometres."""
+    same_instant = 1000 * metrics.rms(tracking_run(make, log_after_step=False).err)
+    on_path = 1000 * metrics.rms(tracking_run(make, start_on_path=True).err)
+    both = 1000 * metrics.rms(tracking_run(make, start_on_path=True, log_after_step=False).err)
+    speed_step_mm = 1000 * 0.15 * 2 * np.pi / 6.0 * 0.002      # |x_d'| dt
+    assert same_instant[0] < 0.06                               # the x lag is gone...
+    assert on_path[1] == pytest.approx(speed_step_mm / np.sqrt(2), rel=0.02)   # ...or only the lag is left
+    assert np.all(both <= 0.1) and np.all(both < 0.005)
+
+
+def test_velocity_transient_matches_closed_form():
+    """Starting at rest, the y error is the critically damped response to e'(0) = -|x_d'(0)|:
+    e(t) = -v t e^{-wn t}; its RMS over 12 s is about 1 mm."""
+    log = tracking_run(osc.make_os_ct_2r, log_after_step=False)
+    v = 0.15 * 2 * np.pi / 6.0
+    analytic = -v * log.t * np.exp(-8.0 * log.t)
+    early = log.t < 1.0
+    assert np.abs(-log.err[early, 1] - analytic[early]).max() < 0.03 * np.abs(analytic).max()
+
+
+def test_lean_2r_controllers_equal_the_generic_array_laws():
+    model, data = load_model("planar_2r")
+    rng = np.random.default_rng(7)
+    Kp, Kd = 64.0, 16.0
+    os_ctrl = osc.make_os_ct_2r(model, CIRCLE, Kp, Kd)
+    ik_ctrl = osc.make_ik_ct_2r(model, CIRCLE, Kp, Kd)
+    for k in rng.integers(0, 3000, size=10):
+        data.time = k * model.opt.timestep
+        data.qpos[:] = k2.inverse_kinematics(CIRCLE(data.time).pos) + rng.normal(0, 0.05, 2)
+        data.qvel[:] = rng.normal(0, 1.0, 2)
+        mujoco.mj_forward(model, data)
+        M, h, q, qdot = mass_matrix(model, data), data.qfrc_bias.copy(), data.qpos.copy(), data.qvel.copy()
+        r = CIRCLE(data.time)
+        J = k2.jacobian(q)
+        expected = osc.os_ct_torque(M, h, J, k2.jdot_qdot(q, qdot), k2.forward_kinematics(q), J @ qdot,
+                                    r.pos, r.vel, r.acc, Kp, Kd)
+        np.testing.assert_allclose(os_ctrl(model, data), expected, rtol=1e-10, atol=1e-12)
+        jr = k2.joint_reference(r)
+        expected = js.ct_joint_torque(M, h, q, qdot, jr.pos, jr.vel, jr.acc, Kp, Kd)
+        np.testing.assert_allclose(ik_ctrl(model, data), expected, rtol=1e-10, atol=1e-12)
+
+
+def test_os_ct_refuses_a_singular_jacobian():
+    model, data = load_model("planar_2r")
+    ctrl = osc.make_os_ct_2r(model, CIRCLE, 64.0, 16.0)
+    data.qpos[:] = [0.3, 0.0]                   # stretched out: det J = l1 l2 sin q2 = 0
+    with pytest.raises(ValueError, match="singular"):
+        ctrl(model, data)
