@@ -1,0 +1,168 @@
+r"""What a check reports, and how the checks reach a student's code.
+
+A check never touches a student's function directly: it asks a :class:`Probe` to call it by
+name. :class:`DirectProbe` calls into a live namespace (the notebook's ``globals()``, for the
+in-notebook feedback); the batch grader's probe forwards the same calls to a separate process
+that ran the submission (:mod:`labsupport.grading.judge`). Either way the check gets plain
+arrays back, or a :class:`StudentError` whose message says in plain words what went wrong.
+
+Arguments that stand for MuJoCo's ``(model, data)`` pair are passed as a :class:`State`; the
+probe turns it into a fresh ``MjData`` of the 3R arm at that state (``mj_forward`` run), so a
+student's function sees exactly what it would see inside a simulation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+PASS, PARTIAL, FAIL, NOT_IMPLEMENTED = "pass", "partial", "fail", "not implemented yet"
+
+
+@dataclass(frozen=True)
+class Result:
+    """Outcome of one check: a score in [0, 1] and plain-words feedback.
+
+    Attributes:
+        name: check name, e.g. ``"p1_ik"``.
+        score: fraction of the check's points earned, in [0, 1].
+        status: ``"pass"``, ``"partial"``, ``"fail"`` or ``"not implemented yet"``.
+        message: what is right and what is wrong, in words a student can act on.
+    """
+
+    name: str
+    score: float
+    status: str
+    message: str
+
+    def __str__(self) -> str:
+        mark = {PASS: "✔", PARTIAL: "◐", FAIL: "✘", NOT_IMPLEMENTED: "…"}.get(self.status, "?")
+        return f"{mark} [{self.name}] {self.message}"
+
+
+def passed(name: str, message: str) -> Result:
+    return Result(name, 1.0, PASS, message)
+
+
+def failed(name: str, message: str, score: float = 0.0) -> Result:
+    score = float(np.clip(score, 0.0, 1.0))
+    return Result(name, score, PARTIAL if score > 0 else FAIL, message)
+
+
+def not_implemented(name: str, message: str) -> Result:
+    return Result(name, 0.0, NOT_IMPLEMENTED, message)
+
+
+class StudentError(Exception):
+    """A student's function could not be used: missing, raised, or returned something unusable."""
+
+
+class NotImplementedYet(StudentError):
+    """The student's function returned ``None``: its TODO is not filled in yet."""
+
+
+class StudentTimeout(StudentError):
+    """The student's code did not answer within the time limit."""
+
+
+@dataclass(frozen=True)
+class State:
+    """Stands for ``(model, data)`` of the 3R arm at joint positions ``q``, velocities ``qdot``, time ``t``."""
+
+    q: np.ndarray
+    qdot: np.ndarray
+    t: float = 0.0
+
+
+def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.ndarray:
+    """Check a returned value is a finite vector of ``size`` numbers; say plainly what is wrong if not.
+
+    Raises:
+        NotImplementedYet: for ``None``.
+        StudentError: for anything else unusable (wrong shape, NaN, not numbers).
+    """
+    if value is None:
+        raise NotImplementedYet(f"{fname} returned None: not implemented yet")
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise StudentError(f"{fname} returned {type(value).__name__}, expected {size} numbers") from None
+    if arr.shape != (size,):
+        raise StudentError(f"the {what} from {fname} has shape {arr.shape}, expected ({size},)")
+    if np.any(np.isnan(arr)):
+        raise StudentError(f"the {what} from {fname} contains NaN: {np.array2string(arr, precision=3)}")
+    if not np.all(np.isfinite(arr)):
+        raise StudentError(f"the {what} from {fname} is not finite: {np.array2string(arr, precision=3)}")
+    return arr
+
+
+class Probe:
+    """How a check calls the student's code. Subclasses implement :meth:`call` and :meth:`get`."""
+
+    def call(self, fname: str, *args, **kwargs):
+        """Call the student's function ``fname``; returns its value (arrays as arrays) or raises StudentError."""
+        raise NotImplementedError
+
+    def get(self, name: str):
+        """The value of the student's variable ``name`` (arrays as arrays); raises StudentError if missing."""
+        raise NotImplementedError
+
+
+@dataclass
+class DirectProbe(Probe):
+    """Calls straight into a namespace (the notebook's ``globals()``)."""
+
+    namespace: dict
+    _model: Any = field(default=None, repr=False)
+
+    def _model_data(self, state: State):
+        import mujoco
+
+        from labsupport.plants import load_model
+
+        if self._model is None:
+            self._model, _ = load_model("spatial_3r")
+        data = mujoco.MjData(self._model)
+        data.qpos[:] = state.q
+        data.qvel[:] = state.qdot
+        data.time = state.t
+        mujoco.mj_forward(self._model, data)
+        return self._model, data
+
+    def _expand(self, args):
+        out = []
+        for a in args:
+            out.extend(self._model_data(a) if isinstance(a, State) else (a,))
+        return out
+
+    def _lookup(self, name: str):
+        if name not in self.namespace:
+            raise StudentError(f"{name} is not defined: run its cell (above) first, or restore it if it was deleted")
+        return self.namespace[name]
+
+    def call(self, fname: str, *args, **kwargs):
+        fn = self._lookup(fname)
+        if not callable(fn):
+            raise StudentError(f"{fname} should be a function, but it is a {type(fn).__name__}")
+        try:
+            value = fn(*self._expand(args), **kwargs)
+        except StudentError:
+            raise
+        except Exception as err:  # the student's code may raise anything
+            raise StudentError(f"{fname} raised {type(err).__name__}: {err}") from None
+        return _plain(value)
+
+    def get(self, name: str):
+        return _plain(self._lookup(name))
+
+
+def _plain(value):
+    """Arrays and numbers as float arrays; anything else unchanged (``None`` stays ``None``)."""
+    if value is None or isinstance(value, (str, bytes, dict)):
+        return value
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return value
