@@ -1,0 +1,42 @@
+"""Two small fixes to the HTML the book's theme stack writes, so that pages load without errors.
+
+* **Scripts added twice.** Some extensions (sphinx-thebe, sphinx-togglebutton) register inline
+  configuration scripts while the builder already exists, and Sphinx then emits them twice in
+  every page (once with no file name, once with an empty one). A repeated
+  ``const THEBE_JS_URL = ...`` is a JavaScript ``SyntaxError`` in the browser console. We drop
+  exact repeats from each page's script list.
+* **Empty colour mode.** The theme writes ``localStorage.mode || "{{ default_mode }}"`` into
+  every page; with no default set, a first visit logs "Got invalid theme mode". We default the
+  mode to ``auto`` (follow the reader's system setting), which is what the theme falls back to.
+"""
+
+from __future__ import annotations
+
+
+def _script_key(script) -> tuple:
+    attributes = getattr(script, "attributes", {}) or {}
+    # An inline script is registered once with filename None and once with "" (the builder's
+    # copy), so the two compare unequal in Sphinx; treat both as "inline".
+    filename = getattr(script, "filename", str(script)) or ""
+    return (str(filename), getattr(script, "priority", 500), tuple(sorted(attributes.items())))
+
+
+def fix_page_context(app, pagename, templatename, context, doctree):
+    """``html-page-context`` handler: unique scripts, and a valid default colour mode."""
+    scripts = context.get("script_files")
+    if isinstance(scripts, list):
+        seen, unique = set(), []
+        for script in scripts:
+            key = _script_key(script)
+            if key not in seen:
+                seen.add(key)
+                unique.append(script)
+        scripts[:] = unique
+    if not context.get("default_mode"):
+        context["default_mode"] = "auto"
+
+
+def setup(app):
+    # Run after the theme has filled the context (its handlers use the default priority 500).
+    app.connect("html-page-context", fix_page_context, priority=900)
+    return {"parallel_read_safe": True, "parallel_write_safe": True}

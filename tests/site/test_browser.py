@@ -1,0 +1,133 @@
+"""Every page of the built site, as a reader's browser (headless Chromium) shows it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from sitetools import (ARTIFACTS, SCREENSHOT_PAGES, expected_colab_url, is_notebook, require_site,
+                      toc_pages)
+
+PAGES = toc_pages()
+NOTEBOOK_PAGES = [p for p in PAGES if is_notebook(p)]
+COLAB = "https://colab.research.google.com/"
+
+
+def test_toc_lists_every_notebook():
+    """Each notebook of notebooks/ is a page of the book (so it gets its launch buttons)."""
+    root = Path(__file__).resolve().parents[2]
+    on_disk = {f"notebooks/{p.stem}" for p in (root / "notebooks").glob("*.ipynb")}
+    assert on_disk <= set(PAGES), f"notebooks missing from _toc.yml: {sorted(on_disk - set(PAGES))}"
+
+
+@pytest.mark.parametrize("page", PAGES)
+def test_page_is_built(page):
+    site = require_site()
+    assert (site / f"{page}.html").is_file(), f"{page}.html missing from the built site"
+
+
+@pytest.mark.parametrize("page", PAGES)
+def test_no_console_errors(visit, page):
+    r = visit(page)
+    problems = ([f"console: {m}" for m in r.console_errors]
+                + [f"uncaught: {m}" for m in r.page_errors]
+                + [f"request failed: {m}" for m in r.failed_requests]
+                + [f"external request (site must load offline, MathJax excepted): {u}"
+                   for u in r.external_requests])
+    assert not problems, f"{page}:\n  " + "\n  ".join(problems)
+
+
+@pytest.mark.parametrize("page", PAGES)
+def test_mathjax_rendered(visit, page):
+    m = visit(page).math
+    if m["nMath"]:
+        assert m["hasMathJax"], f"{page} has {m['nMath']} formulas but MathJax did not load"
+    assert not m["untypeset"], f"{page}: formulas MathJax left untypeset: {m['untypeset'][:5]}"
+    assert not m["merrors"], f"{page}: TeX errors: {m['merrors'][:5]}"
+    assert not m["raw"], f"{page}: raw TeX left in the text: {m['raw'][:5]}"
+    assert m["nTypeset"] >= m["nMath"]
+
+
+def test_theory_equations_are_numbered(visit):
+    """The theory page's labelled equations render with their numbers (what notebooks cite)."""
+    m = visit("book/theory").math
+    assert m["nMath"] >= 20 and m["nTypeset"] >= m["nMath"]
+    site = require_site()
+    html = (site / "book" / "theory.html").read_text(encoding="utf-8")
+    for label in ("eq-sj-model", "eq-pd-gains", "eq-ffpd", "eq-js-ct", "eq-os-ct", "eq-task-inertia"):
+        assert f'id="equation-{label}"' in html, label
+
+
+@pytest.mark.parametrize("page", PAGES)
+def test_images_loaded(visit, page):
+    imgs = visit(page).images
+    assert not imgs["bad"], f"{page}: images that did not load: {imgs['bad']}"
+
+
+@pytest.mark.parametrize("page", PAGES)
+def test_videos_play(visit, page):
+    for v in visit(page).videos:
+        assert v["error"] is None, f"{page}: video {v['src']} failed to load (MediaError {v['error']})"
+        assert v["duration"] and v["duration"] > 0 and v["duration"] != float("inf"), \
+            f"{page}: video {v['src']} has duration {v['duration']}"
+        assert v["played"], f"{page}: video {v['src']} did not play ({v['playError']})"
+        assert v["type"] in ("video/mp4", ""), f"{page}: video {v['src']} is {v['type']}, not MP4"
+
+
+@pytest.mark.parametrize("page", NOTEBOOK_PAGES)
+def test_launch_buttons(visit, page):
+    """The Colab button opens this notebook from the repository of ``_config.yml``; the
+    download button serves the notebook itself."""
+    links = visit(page).links
+    colab = [link["href"] for link in links if link["href"].startswith(COLAB)]
+    assert colab, f"{page}: no Colab launch button"
+    assert set(colab) == {expected_colab_url(page)}, f"{page}: Colab links {colab}"
+    downloads = [link for link in links if link["href"].endswith(".ipynb")
+                 and "download" in (link["title"] + link["cls"]).lower()]
+    assert downloads, f"{page}: no .ipynb download button"
+    site = require_site()
+    for link in downloads:
+        target = (site / page).parent / link["href"]
+        nb = json.loads(target.resolve().read_text(encoding="utf-8"))
+        assert nb["nbformat"] == 4 and nb["cells"], f"{page}: download {link['href']} is not a notebook"
+
+
+@pytest.mark.parametrize("page", PAGES)
+def test_colab_links_point_at_notebooks(visit, page):
+    """Every Colab link anywhere (e.g. the home page's table) opens an existing notebook."""
+    valid = {expected_colab_url(p) for p in NOTEBOOK_PAGES}
+    for link in visit(page).links:
+        if link["href"].startswith(COLAB):
+            assert link["href"] in valid, f"{page}: Colab link {link['href']} opens no notebook"
+
+
+def test_home_page_opens_every_notebook_in_one_click(visit):
+    """A reader goes from the home page to Colab for every task and problem in one click."""
+    home = toc_pages()[0]
+    hrefs = {link["href"] for link in visit(home).links}
+    missing = [p for p in NOTEBOOK_PAGES if expected_colab_url(p) not in hrefs]
+    assert not missing, f"home page has no Colab link for {missing}"
+
+
+def test_install_cell_hidden_on_pages():
+    """The install cell's source sits in a collapsed toggle and its output is removed."""
+    site = require_site()
+    for page in NOTEBOOK_PAGES:
+        html = (site / f"{page}.html").read_text(encoding="utf-8")
+        i = html.find("google.colab")
+        assert i > 0, f"{page}: install cell missing"
+        start = html.rfind('<div class="cell ', 0, i)
+        tag = html[start:html.find(">", start)]
+        assert "tag_hide-input" in tag or "tag_remove-input" in tag, f"{page}: install cell not hidden ({tag})"
+        end = html.find('<div class="cell ', i)
+        assert "cell_output" not in html[i:end if end > 0 else None], f"{page}: install cell shows output"
+
+
+def test_screenshots_saved(visit):
+    """Screenshots of a few pages are kept under tests/artifacts/screenshots for review."""
+    for page in SCREENSHOT_PAGES:
+        visit(page)
+        shot = ARTIFACTS / "screenshots" / f"{page.replace('/', '__')}.png"
+        assert shot.is_file() and shot.stat().st_size > 10_000, shot
