@@ -1,7 +1,7 @@
 r"""The figure layouts the notebooks share, and planar-arm animations as MP4 video.
 
-Every function returns the Matplotlib figure (or the video frames) and shows nothing by
-itself, so a notebook decides what to display. Videos are drawn with Matplotlib's Agg
+The figure functions return a pyplot figure, which a notebook's inline backend shows at the
+end of the cell; the animation draws on a figure of its own, off pyplot, and returns frames. Videos are drawn with Matplotlib's Agg
 canvas frame by frame and encoded by :mod:`mediapy` (H.264 MP4), a few hundred kilobytes
 each, instead of frame-by-frame HTML.
 """
@@ -10,8 +10,6 @@ from __future__ import annotations
 
 from typing import Mapping, Sequence
 
-import matplotlib
-
 import numpy as np
 from matplotlib.figure import Figure
 
@@ -19,10 +17,10 @@ from labsupport.metrics import cumulative_effort
 
 
 def _figure(figsize, nrows=1, ncols=1, **kwargs):
-    """A figure not attached to pyplot (no window, no global state), with its axes."""
-    fig = Figure(figsize=figsize, layout="constrained")
-    axes = fig.subplots(nrows, ncols, squeeze=False, **kwargs)
-    return fig, axes
+    """A pyplot figure with a 2-D array of axes."""
+    import matplotlib.pyplot as plt
+
+    return plt.subplots(nrows, ncols, figsize=figsize, squeeze=False, layout="constrained", **kwargs)
 
 
 def joint_tracking_figure(t, desired, runs: Mapping[str, np.ndarray], title: str = "", unit: str = "deg"):
@@ -127,7 +125,7 @@ def circle_tracking_figure(runs: Mapping[str, object], desired_path):
     ax = axes[0, 1]
     for label, log in runs.items():
         ax.plot(log.t, 1000 * np.linalg.norm(log.err, axis=1), lw=1.2, label=label)
-    ax.set(xlabel="time [s]", ylabel=r"$\lVert x_d - x\rVert$ [mm]", title="Cartesian error")
+    ax.set(xlabel="time [s]", ylabel=r"$|x_d - x|$ [mm]", title="Cartesian error")
     ax = axes[0, 2]
     for i, (label, log) in enumerate(runs.items()):
         for j, style in enumerate(("-", "--")):
