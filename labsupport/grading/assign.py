@@ -1,0 +1,156 @@
+"""Generate the student notebooks and the autograder specs from the Problems' master notebooks.
+
+Usage (from the repository root)::
+
+    .venv/bin/python -m labsupport.grading.assign            # write notebooks/*.ipynb and tests/autograder/*.json
+    .venv/bin/python -m labsupport.grading.assign --check    # exit 1 if what is committed differs
+
+A master (``notebooks/masters/*.ipynb``) holds the solution and the checks, in the spirit of
+``otter assign``:
+
+* notebook metadata ``labsupport_grading``: ``problem``, ``student`` (the path of the student
+  notebook to write) and ``checks`` (``name``, ``points``, ``title``), the autograder's tests;
+* in code cells, lines between ``# BEGIN SOLUTION`` and ``# END SOLUTION`` are the solution
+  (removed), and a line ``# STUDENT: code`` becomes ``code`` in the student's version (the stub);
+* in markdown cells, text between ``<!-- BEGIN SOLUTION -->`` and ``<!-- END SOLUTION -->`` is
+  removed; a cell tagged ``solution`` is dropped whole;
+* each check is a code cell ``check("name", globals())``, right after the TODO it checks.
+
+The student notebook keeps the checks' list in its metadata (so it needs no extra file, on
+Colab too) and the spec ``tests/autograder/<problem>.json`` tells the batch grader which checks
+to run and their points: the checks themselves are code in :mod:`labsupport.grading`, never
+taken from a submission.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import re
+import sys
+from pathlib import Path
+
+import nbformat
+
+MASTERS = Path("notebooks") / "masters"
+SPEC_DIR = Path("tests") / "autograder"
+_CHECK_CELL = re.compile(r'^check\("([a-z0-9_]+)", globals\(\)\)\s*$')
+
+
+class MasterError(ValueError):
+    """The master notebook does not follow the format (message says where)."""
+
+
+def strip_code(source: str, where: str) -> str:
+    """The student's version of a code cell: solution blocks removed, ``# STUDENT:`` lines uncommented."""
+    out, inside = [], False
+    for line in source.split("\n"):
+        marker = line.strip()
+        if marker == "# BEGIN SOLUTION":
+            if inside:
+                raise MasterError(f"{where}: nested # BEGIN SOLUTION")
+            inside = True
+        elif marker == "# END SOLUTION":
+            if not inside:
+                raise MasterError(f"{where}: # END SOLUTION without # BEGIN SOLUTION")
+            inside = False
+        elif inside:
+            continue
+        elif marker.startswith("# STUDENT:"):
+            indent = line[: len(line) - len(line.lstrip())]
+            out.append(indent + marker[len("# STUDENT:"):].lstrip())
+        else:
+            out.append(line)
+    if inside:
+        raise MasterError(f"{where}: # BEGIN SOLUTION without # END SOLUTION")
+    return "\n".join(out).strip("\n")
+
+
+def strip_markdown(source: str) -> str:
+    """The student's version of a markdown cell: solution blocks removed."""
+    return re.sub(r"<!-- BEGIN SOLUTION -->.*?<!-- END SOLUTION -->\n?", "", source, flags=re.S).strip("\n")
+
+
+def student_notebook(master: nbformat.NotebookNode, where: str = "master") -> nbformat.NotebookNode:
+    """The student notebook generated from a master (no outputs, same cell ids)."""
+    meta = master.metadata.get("labsupport_grading")
+    if not meta or not {"problem", "student", "checks"} <= set(meta):
+        raise MasterError(f"{where}: metadata 'labsupport_grading' with problem, student and checks is missing")
+    nb = nbformat.v4.new_notebook()
+    nb.metadata = {"kernelspec": copy.deepcopy(master.metadata.get("kernelspec", {})),
+                   "language_info": {"name": "python"},
+                   "labsupport_grading": {"problem": meta["problem"], "checks": copy.deepcopy(meta["checks"])}}
+    seen = []
+    for k, cell in enumerate(master.cells):
+        if "solution" in cell.metadata.get("tags", []):
+            continue
+        if cell.cell_type == "code":
+            src = strip_code(cell.source, f"{where}, cell {k}")
+            m = _CHECK_CELL.match(src)
+            if m:
+                seen.append(m.group(1))
+            new = nbformat.v4.new_code_cell(src)
+        elif cell.cell_type == "markdown":
+            new = nbformat.v4.new_markdown_cell(strip_markdown(cell.source))
+        else:
+            new = nbformat.v4.new_raw_cell(cell.source)
+        new.id = cell.get("id", f"cell-{k}")
+        tags = [t for t in cell.metadata.get("tags", []) if t != "solution"]
+        if tags:
+            new.metadata["tags"] = tags
+        nb.cells.append(new)
+    names = [c["name"] for c in meta["checks"]]
+    if sorted(seen) != sorted(names):
+        raise MasterError(f"{where}: check cells {seen} do not match the metadata's checks {names}")
+    return nb
+
+
+def spec(master: nbformat.NotebookNode, master_path: str) -> dict:
+    """The autograder spec of a master: problem, notebooks, and the checks with their points."""
+    meta = master.metadata["labsupport_grading"]
+    return {"problem": meta["problem"], "master": master_path, "student": meta["student"],
+            "checks": [{"name": c["name"], "points": c["points"], "title": c["title"]} for c in meta["checks"]]}
+
+
+def render(nb: nbformat.NotebookNode) -> str:
+    """The exact text a notebook is committed as."""
+    return nbformat.writes(nb) + "\n"
+
+
+def outputs(root: Path = Path(".")) -> dict[Path, str]:
+    """Every generated file and its text, from the masters under ``root``."""
+    files = {}
+    masters = sorted((root / MASTERS).glob("*.ipynb"))
+    if not masters:
+        raise MasterError(f"no master notebooks in {root / MASTERS}: run from the repository root")
+    for path in masters:
+        master = nbformat.read(str(path), as_version=4)
+        rel = path.relative_to(root).as_posix()
+        student = student_notebook(master, rel)
+        sp = spec(master, rel)
+        files[root / sp["student"]] = render(student)
+        files[root / SPEC_DIR / f"{sp['problem']}.json"] = json.dumps(sp, indent=2, ensure_ascii=False) + "\n"
+    return files
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description="Generate student notebooks and autograder specs from the masters.")
+    parser.add_argument("--check", action="store_true", help="only compare with what is on disk; exit 1 on drift")
+    args = parser.parse_args(argv)
+    drift = []
+    for path, text in outputs().items():
+        current = path.read_text(encoding="utf-8") if path.exists() else None
+        if current == text:
+            continue
+        drift.append(path)
+        if not args.check:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text, encoding="utf-8")
+    verb = "differ from the masters" if args.check else "written"
+    print("\n".join(f"{p}: {verb}" for p in drift) or "everything is up to date")
+    return 1 if (args.check and drift) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
