@@ -1,0 +1,116 @@
+"""A notebook runs in a brand-new virtual environment, far from this repository.
+
+This is what a student's Colab session does: a Python with nothing of ours installed runs the
+install cell, which pip-installs ``labsupport @ git+<repository>@<branch>``, and then the
+notebook. Here the same pip command installs from this checkout's git repository
+(``git+file://...@<HEAD>``, so only committed files count, exactly as for the GitHub URL), into a
+virtual environment that does NOT see the system's or the project's site-packages, and the
+Task 1 notebook is executed from a temporary directory outside the repository. A missing
+dependency, a model file not shipped with the package, or a path relative to the repository
+would fail here.
+
+It takes a minute or two (pip reuses its cache), so it carries the ``fresh_venv`` mark:
+``pytest -m "not fresh_venv"`` leaves it out of a quick run; CI runs it.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import nbformat
+import pytest
+
+import nbtools
+
+pytestmark = pytest.mark.fresh_venv
+
+ROOT = nbtools.ROOT
+NOTEBOOK = ROOT / "notebooks" / "task1_single_joint.ipynb"
+#: What Colab already provides and the install cell therefore does not install: a kernel and a
+#: notebook runner. Pinned to the versions of this project's environment (pip's cache has them).
+RUNNER = ["ipykernel", "nbclient", "nbformat"]
+
+RUN_NOTEBOOK = r"""
+import json, sys
+import nbformat
+from nbclient import NotebookClient
+
+src, out, cwd = sys.argv[1:4]
+nb = nbformat.read(src, as_version=4)
+probe = nbformat.v4.new_code_cell(
+    "import sys, json, labsupport\n"
+    "from labsupport.plants import model_path\n"
+    "print(json.dumps({'prefix': sys.prefix, 'labsupport': labsupport.__file__,\n"
+    "                  'model': str(model_path('single_joint'))}))")
+nb.cells.append(probe)
+NotebookClient(nb, timeout=600, kernel_name="python3",
+               resources={"metadata": {"path": cwd}}).execute()
+nbformat.write(nb, out)
+print(nb.cells[-1].outputs[-1]["text"])
+"""
+
+
+def _git_head() -> str:
+    out = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True, text=True)
+    if out.returncode != 0:
+        pytest.fail(f"the fresh-venv test installs from this git checkout, but git failed: {out.stderr}")
+    return out.stdout.strip()
+
+
+def _run(cmd, **kwargs):
+    out = subprocess.run(cmd, capture_output=True, text=True, **kwargs)
+    assert out.returncode == 0, f"{' '.join(map(str, cmd))} failed:\n{out.stdout[-3000:]}\n{out.stderr[-3000:]}"
+    return out
+
+
+def test_task1_runs_in_a_fresh_venv(tmp_path):
+    assert shutil.which("git"), "git is needed to install from the checkout, as pip does from GitHub"
+    venv = tmp_path / "venv"
+    work = tmp_path / "student"
+    work.mkdir()
+    base_python = getattr(sys, "_base_executable", sys.executable)
+    _run([base_python, "-m", "venv", str(venv)])  # no --system-site-packages: nothing leaks in
+    py = venv / "bin" / "python"
+
+    env = {k: v for k, v in os.environ.items()
+           if k not in {"PYTHONPATH", "VIRTUAL_ENV", "PYTHONHOME", "PYTHONSTARTUP"}}
+    env["MUJOCO_GL"] = env.get("MUJOCO_GL", "egl")
+    env["PIP_DISABLE_PIP_VERSION_CHECK"] = "1"
+
+    # Colab's pip is recent; the pip that `venv` bundles may be too old for `git+file://` URLs.
+    _run([str(py), "-m", "pip", "install", "-q", "--upgrade", "pip"], cwd=work, env=env, timeout=600)
+    # The install cell's command, with the local repository in place of the GitHub URL.
+    spec = f"labsupport @ git+{ROOT.as_uri()}@{_git_head()}"
+    cell = nbtools.install_cell_source()
+    assert '"-m", "pip", "install", "-q"' in cell and "labsupport @ git+" in cell
+    _run([str(py), "-m", "pip", "install", "-q", spec], cwd=work, env=env, timeout=900)
+    runner = [f"{name}=={importlib.metadata.version(name)}" for name in RUNNER]
+    _run([str(py), "-m", "pip", "install", "-q", *runner], cwd=work, env=env, timeout=900)
+
+    # Nothing of the project's own environment is visible in the new one.
+    probe = _run([str(py), "-c", "import sys; print(sys.prefix); import importlib.util as u; "
+                  "print(u.find_spec('jupyter_book') is None)"], cwd=work, env=env)
+    prefix, no_book = probe.stdout.split()
+    assert Path(prefix) == venv and no_book == "True"
+
+    executed = work / "executed.ipynb"
+    out = _run([str(py), "-c", RUN_NOTEBOOK, str(NOTEBOOK), str(executed), str(work)],
+               cwd=work, env=env, timeout=900)
+    facts = json.loads(out.stdout.strip().splitlines()[-1])
+    assert Path(facts["prefix"]) == venv, "the notebook ran in another Python"
+    assert Path(facts["labsupport"]).is_relative_to(venv), \
+        f"labsupport came from {facts['labsupport']}, not from the fresh install"
+    assert Path(facts["model"]).is_relative_to(venv) and Path(facts["model"]).is_file()
+
+    nb = nbformat.read(str(executed), as_version=4)
+    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
+              if o.get("output_type") == "error"]
+    assert not errors, f"the notebook raised: {errors[0].get('ename')}: {errors[0].get('evalue')}"
+    ran = [c for c in nb.cells if c.cell_type == "code" and c.get("execution_count")]
+    assert len(ran) == sum(c.cell_type == "code" for c in nb.cells), "not every cell ran"

@@ -1,0 +1,90 @@
+"""Every notebook starts with the same install cell, built from the repository URL of
+``_config.yml``: it installs labsupport on Colab, does nothing elsewhere, and is hidden on the page."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import types
+from unittest import mock
+
+import nbformat
+import pytest
+import yaml
+
+import nbtools
+
+NOTEBOOKS = nbtools.notebook_paths()
+
+
+def first_code_cell(path):
+    nb = nbformat.read(str(path), as_version=4)
+    cells = [c for c in nb.cells if c.cell_type == "code"]
+    assert cells, f"{path.name} has no code cell"
+    return nb, cells[0]
+
+
+def test_there_are_notebooks():
+    assert len(nbtools.notebook_paths(include_masters=False)) >= 6
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_install_cell_matches_config(path):
+    nb, cell = first_code_cell(path)
+    assert nb.cells[0].cell_type == "markdown" and nb.cells[0].source.lstrip().startswith("#"), \
+        f"{path.name}: the first cell must be the markdown title"
+    assert cell.source == nbtools.install_cell_source(), \
+        f"{path.name}: first code cell differs from nbtools.install_cell_source(); regenerate it"
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_install_cell_is_hidden(path):
+    _, cell = first_code_cell(path)
+    tags = set(cell.metadata.get("tags", []))
+    assert set(nbtools.INSTALL_CELL_TAGS) <= tags, f"{path.name}: install cell tags {sorted(tags)}"
+    assert tags & {"hide-input", "remove-input", "remove-cell"}, f"{path.name}: source shown"
+    assert tags & {"remove-output", "hide-output", "remove-cell"}, f"{path.name}: output shown"
+
+
+def test_install_cell_uses_the_configured_repository():
+    config = yaml.safe_load((nbtools.ROOT / "_config.yml").read_text(encoding="utf-8"))
+    url = config["repository"]["url"].rstrip("/")
+    branch = config["repository"].get("branch", "main")
+    source = nbtools.install_cell_source()
+    assert f"git+{url}@{branch}" in source
+    # One place: changing the URL in _config.yml changes the cell.
+    other = nbtools.install_cell_source("https://github.com/someone/else")
+    assert "git+https://github.com/someone/else@" in other and url not in other
+
+
+def _run_install_cell(on_colab: bool) -> list:
+    """Execute the install cell with ``subprocess.run`` recorded instead of run."""
+    calls = []
+
+    def fake_run(args, **kwargs):
+        calls.append((args, kwargs))
+        return subprocess.CompletedProcess(args, 0)
+
+    modules = dict(sys.modules)
+    if on_colab:
+        modules["google.colab"] = types.ModuleType("google.colab")
+    else:
+        modules.pop("google.colab", None)
+    with mock.patch.dict(sys.modules, modules, clear=True), \
+            mock.patch.object(subprocess, "run", fake_run):
+        exec(compile(nbtools.install_cell_source(), "<install cell>", "exec"), {})
+    return calls
+
+
+def test_install_cell_does_nothing_outside_colab():
+    assert _run_install_cell(on_colab=False) == []
+
+
+def test_install_cell_installs_labsupport_on_colab():
+    calls = _run_install_cell(on_colab=True)
+    assert len(calls) == 1
+    args, kwargs = calls[0]
+    assert args[:4] == [sys.executable, "-m", "pip", "install"]
+    spec = args[-1]
+    assert spec == f"labsupport @ git+{nbtools.repository_url()}@main"
+    assert kwargs.get("check") is True, "a failed install must stop the notebook"
