@@ -186,3 +186,18 @@ def test_os_ct_refuses_a_singular_jacobian():
     data.qpos[:] = [0.3, 0.0]                   # stretched out: det J = l1 l2 sin q2 = 0
     with pytest.raises(ValueError, match="singular"):
         ctrl(model, data)
+
+
+def test_generic_joint_ct_tracking_equals_the_2r_ik_controller():
+    """make_ct_tracking (any n, NumPy) with the IK joint reference gives the same torques as
+    the scalar 2R IK + CT controller, along a whole run."""
+    model, data = load_model("planar_2r")
+    Kp, Kd = gains.ct_gains(8.0, 1.0)
+    generic = js.make_ct_tracking(model, lambda t: k2.joint_reference(CIRCLE(t)), Kp, Kd)
+    lean = osc.make_ik_ct_2r(model, CIRCLE, Kp, Kd)
+    q0 = k2.inverse_kinematics(CIRCLE(0.0).pos)
+    a = sim.simulate(model, data, generic, 1.0, q0=q0)
+    b = sim.simulate(model, data, lean, 1.0, q0=q0)
+    np.testing.assert_allclose(a.tau, b.tau, rtol=1e-9, atol=1e-12)
+    with pytest.raises(ValueError, match="joint angles"):
+        js.make_ct_tracking(model, lambda t: CIRCLE(t)._replace(pos=np.zeros(3)), Kp, Kd)
