@@ -57,22 +57,95 @@ def available_backends() -> list[str]:
     return found
 
 
+def egl_works() -> bool:
+    """True when EGL can open a headless display the way MuJoCo does (a GPU, or Mesa's llvmpipe).
+
+    Calls ``eglQueryDevicesEXT``, ``eglGetPlatformDisplayEXT`` and ``eglInitialize`` through
+    ctypes, so it needs neither MuJoCo nor PyOpenGL and takes a few milliseconds.
+    """
+    name = ctypes.util.find_library("EGL")
+    if not name:
+        return False
+    try:
+        egl = ctypes.CDLL(name)
+        egl.eglGetProcAddress.restype = ctypes.c_void_p
+        egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+        egl.eglInitialize.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_int)]
+        egl.eglTerminate.argtypes = [ctypes.c_void_p]
+        query_addr = egl.eglGetProcAddress(b"eglQueryDevicesEXT")
+        display_addr = egl.eglGetProcAddress(b"eglGetPlatformDisplayEXT")
+        if not (query_addr and display_addr):
+            return False
+        query = ctypes.CFUNCTYPE(ctypes.c_uint, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p),
+                                 ctypes.POINTER(ctypes.c_int))(query_addr)
+        get_display = ctypes.CFUNCTYPE(ctypes.c_void_p, ctypes.c_uint, ctypes.c_void_p,
+                                       ctypes.c_void_p)(display_addr)
+        devices, count = (ctypes.c_void_p * 16)(), ctypes.c_int(0)
+        if not query(16, devices, ctypes.byref(count)):
+            return False
+        for i in range(count.value):
+            display = get_display(_EGL_PLATFORM_DEVICE_EXT, devices[i], None)
+            major, minor = ctypes.c_int(), ctypes.c_int()
+            if display and egl.eglInitialize(display, ctypes.byref(major), ctypes.byref(minor)):
+                egl.eglTerminate(display)
+                return True
+    except (OSError, AttributeError, TypeError):
+        return False
+    return False
+
+
+def osmesa_works() -> bool:
+    """True when OSMesa (software OpenGL) can create a context."""
+    name = ctypes.util.find_library("OSMesa")
+    if not name:
+        return False
+    try:
+        lib = ctypes.CDLL(name)
+        lib.OSMesaCreateContextExt.restype = ctypes.c_void_p
+        lib.OSMesaCreateContextExt.argtypes = [ctypes.c_uint, ctypes.c_int, ctypes.c_int,
+                                               ctypes.c_int, ctypes.c_void_p]
+        lib.OSMesaDestroyContext.argtypes = [ctypes.c_void_p]
+        context = lib.OSMesaCreateContextExt(_OSMESA_RGBA, 24, 0, 0, None)
+        if not context:
+            return False
+        lib.OSMesaDestroyContext(context)
+        return True
+    except (OSError, AttributeError, TypeError):
+        return False
+
+
+#: Why the last :func:`select_backend` chose what it chose (shown by rendering errors).
+last_choice: str = "select_backend() has not run"
+
+
 def select_backend() -> str | None:
     """Set ``MUJOCO_GL`` (and ``PYOPENGL_PLATFORM``) unless the user already chose.
 
-    Returns the backend in force, or None when none was found (rendering then raises a
-    :class:`labsupport.render.RenderingUnavailable` that says what to install).
+    EGL is taken if it really opens a display (:func:`egl_works`), else OSMesa if it really
+    creates a context (:func:`osmesa_works`), else nothing: simulation still works and
+    rendering raises a :class:`labsupport.render.RenderingUnavailable` that says what to
+    install. Returns the backend in force, or None.
     """
+    global last_choice
     if "MUJOCO_GL" in os.environ:
+        last_choice = f"MUJOCO_GL={os.environ['MUJOCO_GL']} was set before labsupport was imported"
         return os.environ["MUJOCO_GL"]
     if "mujoco" in sys.modules:
-        # Too late to choose: MuJoCo has already read the variable.
+        last_choice = "mujoco was imported before labsupport, so MUJOCO_GL could not be chosen"
         return None
     if on_colab():
         install_nvidia_egl_vendor_file()
-    backends = available_backends()
-    if not backends:
-        return None
-    os.environ["MUJOCO_GL"] = backends[0]
-    os.environ.setdefault("PYOPENGL_PLATFORM", backends[0])
-    return backends[0]
+    tried = []
+    for backend, works in (("egl", egl_works), ("osmesa", osmesa_works)):
+        if works():
+            os.environ["MUJOCO_GL"] = backend
+            os.environ.setdefault("PYOPENGL_PLATFORM", backend)
+            last_choice = f"MUJOCO_GL={backend} (tried first: {', '.join(tried) or 'nothing'})"
+            return backend
+        tried.append(f"{backend} did not work")
+    last_choice = "no OpenGL backend works: " + ", ".join(tried)
+    return None
+
+
+_EGL_PLATFORM_DEVICE_EXT = 0x313F
+_OSMESA_RGBA = 0x1908

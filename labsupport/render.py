@@ -1,0 +1,163 @@
+r"""Offscreen MuJoCo video: replay a run, draw the target and end-effector traces, encode MP4.
+
+Rendering goes through :class:`mujoco.Renderer` on the OpenGL backend that
+:mod:`labsupport.gl` chose when :mod:`labsupport` was imported: EGL (a GPU, or Mesa's
+llvmpipe on a CPU-only machine), else OSMesa. If none works, :class:`RenderingUnavailable`
+says what to install; :func:`show_run_video` then prints that message instead of a video, so
+a notebook still runs to the end.
+
+Videos are rendered *after* the simulation, from the logged joint angles, so rendering
+never slows the control loop down and a failed render loses no results.
+"""
+
+from __future__ import annotations
+
+import os
+
+import mujoco
+import numpy as np
+
+#: Blue target trace and red end-effector trace, as in the lab.
+TARGET_RGBA = np.array([0.0, 0.2, 1.0, 1.0], dtype=np.float32)
+EE_RGBA = np.array([1.0, 0.0, 0.0, 0.8], dtype=np.float32)
+
+INSTALL_HINT = (
+    "Install an OpenGL library that works without a display and restart the kernel: "
+    "on Debian/Ubuntu `sudo apt-get install libegl1 libgl1-mesa-dri` (EGL through Mesa) or "
+    "`sudo apt-get install libosmesa6` (OSMesa, software only); on Colab choose a GPU runtime "
+    "(Runtime > Change runtime type), labsupport sets up NVIDIA's EGL itself. Then "
+    "`import labsupport` before anything imports mujoco. The simulation results do not need "
+    "a video."
+)
+
+
+_ZERO3, _ZERO9 = np.zeros(3), np.zeros(9)
+
+
+class RenderingUnavailable(RuntimeError):
+    """No OpenGL backend could create an offscreen context; the message says what to install."""
+
+
+def make_renderer(model: mujoco.MjModel, width: int = 320, height: int = 240) -> mujoco.Renderer:
+    """An offscreen :class:`mujoco.Renderer`, or :class:`RenderingUnavailable` with advice.
+
+    Raises:
+        ValueError: if the size exceeds the model's offscreen buffer (``<global offwidth>``).
+    """
+    from labsupport import gl
+
+    width, height = int(width), int(height)
+    if width <= 0 or height <= 0:
+        raise ValueError(f"width and height must be positive pixels, got {width}x{height}")
+    if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
+        raise ValueError(f"{width}x{height} is larger than the model's offscreen buffer "
+                         f"({model.vis.global_.offwidth}x{model.vis.global_.offheight}); "
+                         "pick a smaller size or raise <visual><global offwidth offheight>")
+    backend = os.environ.get("MUJOCO_GL")
+    if not backend:
+        raise RenderingUnavailable(f"No OpenGL backend for MuJoCo ({gl.last_choice}). {INSTALL_HINT}")
+    try:
+        return mujoco.Renderer(model, height=height, width=width)
+    except Exception as err:  # EGL/OSMesa/PyOpenGL raise many types; all mean "no context"
+        raise RenderingUnavailable(
+            f"MuJoCo could not open an offscreen OpenGL context with MUJOCO_GL={backend} "
+            f"({type(err).__name__}: {err}). {INSTALL_HINT}") from err
+
+
+def add_trace(scene: mujoco.MjvScene, points: np.ndarray, width: float, rgba: np.ndarray) -> int:
+    """Append line segments ``width`` pixels wide joining consecutive ``points`` (K, 3) to
+    ``scene``; returns how many fit. (Lines, not the lab's capsules: a software renderer
+    draws hundreds of capsules several times slower than the robot itself.)"""
+    added = 0
+    for p0, p1 in zip(points[:-1], points[1:]):
+        if scene.ngeom >= scene.maxgeom:
+            break
+        geom = scene.geoms[scene.ngeom]
+        mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_LINE, _ZERO3, _ZERO3, _ZERO9, rgba)
+        mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, width, p0, p1)
+        scene.ngeom += 1
+        added += 1
+    return added
+
+
+def site_positions(model: mujoco.MjModel, q: np.ndarray, site: str = "attachment_site") -> np.ndarray:
+    """Positions (N, 3) of ``site`` at the joint configurations ``q`` (N, nq), by forward kinematics."""
+    sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
+    if sid < 0:
+        raise ValueError(f"site {site!r} is not in the model")
+    scratch = mujoco.MjData(model)
+    out = np.empty((len(q), 3))
+    for k, qk in enumerate(q):
+        scratch.qpos[:] = qk
+        mujoco.mj_kinematics(model, scratch)
+        out[k] = scratch.site_xpos[sid]
+    return out
+
+
+def render_run(model: mujoco.MjModel, run, *, fps: float = 15, width: int = 320, height: int = 240,
+               camera: str | int = "lab", trace_step: float = 0.04, progress: bool = True,
+               site: str = "attachment_site", target_body: str = "target") -> np.ndarray:
+    """Frames (F, height, width, 3) replaying ``run`` (a :class:`labsupport.ur5e.Ur5eRun`).
+
+    Each frame shows the robot at the logged joint angles, the mocap target, and the traces
+    (every ``trace_step`` seconds) of the target (blue) and of the end effector (red) up to
+    that instant. Shadows and reflections are off: software OpenGL renders several times
+    faster without them. A progress bar (tqdm) shows when ``progress`` is true.
+    """
+    if not (np.isfinite(fps) and 0 < fps <= 60):
+        raise ValueError(f"fps must be in (0, 60], got {fps!r}")
+    dt = run.timestep
+    n = len(run.t)
+    duration = n * dt
+    frame_steps = np.minimum((np.arange(int(duration * fps)) / fps / dt).round().astype(int), n - 1)
+    stride = max(1, int(round(trace_step / dt)))
+    trail_idx = np.arange(0, n, stride)
+    ee_trail = site_positions(model, run.q[trail_idx], site)
+    target_trail = run.target[trail_idx]
+
+    renderer = make_renderer(model, width, height)
+    data = mujoco.MjData(model)
+    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, target_body)
+    mocap = model.body_mocapid[body] if body >= 0 else -1
+    if mocap >= 0:
+        data.mocap_quat[mocap] = run.target_quat
+    frames = np.empty((len(frame_steps), height, width, 3), dtype=np.uint8)
+    steps = frame_steps
+    if progress:
+        from tqdm.auto import tqdm
+        steps = tqdm(frame_steps, desc="rendering", unit="frame", leave=False)
+    try:
+        for i, k in enumerate(steps):
+            data.qpos[:] = run.q[k]
+            if mocap >= 0:
+                data.mocap_pos[mocap] = run.target[k]
+            mujoco.mj_forward(model, data)
+            renderer.update_scene(data, camera=camera)
+            renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
+            renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+            upto = int(np.searchsorted(trail_idx, k, side="right"))
+            add_trace(renderer.scene, target_trail[:upto], 3.0, TARGET_RGBA)
+            add_trace(renderer.scene, ee_trail[:upto], 3.0, EE_RGBA)
+            frames[i] = renderer.render()
+    finally:
+        renderer.close()
+    return frames
+
+
+def show_video(frames: np.ndarray, fps: float, title: str | None = None, qp: int = 30) -> None:
+    """Show frames inline as an H.264 MP4 (mediapy); ``qp`` trades size for quality."""
+    import mediapy
+
+    mediapy.show_video(frames, fps=fps, title=title, qp=qp)
+
+
+def show_run_video(model: mujoco.MjModel, run, *, title: str | None = None, fps: float = 15,
+                   **options) -> np.ndarray | None:
+    """Render ``run`` and show it; without a working OpenGL backend print why and return None."""
+    try:
+        frames = render_run(model, run, fps=fps, **options)
+    except RenderingUnavailable as err:
+        print(f"(No video: {err})")
+        return None
+    show_video(frames, fps, title)
+    return frames
