@@ -121,16 +121,39 @@ def grade_one(index: int, name: str, data: bytes | None, read_error: str | None,
     try:
         return json.loads(out.decode().strip().splitlines()[-1])
     except (ValueError, IndexError, UnicodeDecodeError):
+        if proc.returncode is not None and proc.returncode < 0:
+            return {"status": "error", "scores": {}, "messages": {},
+                    "notes": [f"the grading process was killed (signal {-proc.returncode}); "
+                              "the submission probably killed it"]}
         tail = err.decode(errors="replace").strip().splitlines()[-1:] or ["no output"]
         return {"status": "error", "scores": {}, "messages": {}, "notes": [f"the grader failed: {tail[0][:200]}"]}
 
 
 def _kill_group(proc: subprocess.Popen) -> None:
+    """Kill the judge's whole session: the judge and the sandbox it started."""
+    for pid in _session_members(proc.pid):
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
     try:
         os.killpg(proc.pid, signal.SIGKILL)
     except (ProcessLookupError, PermissionError):
         pass
     proc.wait()
+
+
+def _session_members(sid: int) -> list[int]:
+    """Processes of session ``sid`` (Linux ``/proc``; empty elsewhere)."""
+    members = []
+    for entry in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = entry.read_text().rsplit(")", 1)[1].split()
+            if int(fields[3]) == sid:
+                members.append(int(entry.parent.name))
+        except (OSError, IndexError, ValueError):
+            continue
+    return members
 
 
 def feedback_text(name: str, spec: dict, row: dict) -> str:

@@ -41,7 +41,8 @@ class SandboxProbe(Probe):
     def __init__(self, workdir: Path, lib: Path, cells: list[tuple[int, str]], run_timeout: float = 120,
                  cell_timeout: float = 60, call_timeout: float = 10, max_starts: int = 3):
         self.workdir, self.lib, self.cells = Path(workdir), Path(lib), cells
-        self.run_timeout, self.cell_timeout, self.call_timeout = run_timeout, cell_timeout, call_timeout
+        self.run_timeout, self.call_timeout = run_timeout, call_timeout
+        self.cell_timeout = min(cell_timeout, max(1.0, run_timeout / 2))  # one hung cell leaves time for the rest
         self.max_starts = max_starts
         self.proc: subprocess.Popen | None = None
         self.starts = 0
@@ -70,7 +71,7 @@ class SandboxProbe(Probe):
         cpu = int(self.run_timeout + 600)
 
         def limits():
-            os.setsid()
+            os.setpgid(0, 0)  # its own group (stopped as one), inside the judge's session
             resource.setrlimit(resource.RLIMIT_FSIZE, (64 << 20, 64 << 20))  # no file over 64 MB
             resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu))
             resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
