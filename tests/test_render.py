@@ -1,0 +1,120 @@
+"""Offscreen rendering: real frames through EGL (and OSMesa), and a clear error without OpenGL.
+
+Each case runs in a fresh interpreter, because MuJoCo reads ``MUJOCO_GL`` once, when it is
+first imported.
+"""
+
+import json
+import os
+import subprocess
+import sys
+
+import labsupport  # noqa: F401
+import numpy as np
+import pytest
+
+from labsupport import gl, render
+
+SCRIPT = r"""
+import json, os, sys
+import numpy as np
+import labsupport
+from labsupport import gl, render, ur5e
+from labsupport.controllers.ur5e import LabController
+model, data = ur5e.load_ur5e()
+run = ur5e.run(model, data, LabController(), ur5e.CircleTask(duration=1.0))
+result = {"backend": os.environ.get("MUJOCO_GL"), "choice": gl.last_choice}
+try:
+    frames = render.render_run(model, run, fps=5, progress=False)
+    np.save(sys.argv[1], frames)
+except render.RenderingUnavailable as err:
+    result["error"] = str(err)
+shown = render.show_run_video(model, run, fps=5, progress=False) if "error" in result else "skipped"
+result["show_returned_none"] = shown is None
+print(json.dumps(result))
+"""
+
+
+def _render_in_subprocess(tmp_path, **env):
+    environment = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    environment.update(env)
+    out = subprocess.run([sys.executable, "-c", SCRIPT, str(tmp_path / "frames.npy")], env=environment,
+                         cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    frames = np.load(tmp_path / "frames.npy") if (tmp_path / "frames.npy").exists() else None
+    return result, frames
+
+
+def _assert_real_frames(frames):
+    assert frames.shape == (5, 240, 320, 3) and frames.dtype == np.uint8
+    for frame in frames:
+        assert frame.std() > 10, "a frame is (nearly) uniform"
+        assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 100
+    # the arm moves: consecutive frames differ, and the first and last clearly
+    assert all(np.any(a != b) for a, b in zip(frames[:-1], frames[1:]))
+    assert np.mean(np.abs(frames[0].astype(int) - frames[-1].astype(int))) > 0.5
+
+
+@pytest.mark.skipif(not gl.egl_works(), reason="EGL cannot open a display on this machine")
+def test_egl_renders_frames_that_are_not_blank(tmp_path):
+    result, frames = _render_in_subprocess(tmp_path)
+    assert result["backend"] == "egl", result
+    assert "error" not in result, result
+    _assert_real_frames(frames)
+
+
+@pytest.mark.skipif(not gl.osmesa_works(), reason="OSMesa is not installed")
+def test_falls_back_to_osmesa_when_egl_fails(tmp_path):
+    # glvnd finds no EGL vendor library: EGL fails, OSMesa takes over
+    result, frames = _render_in_subprocess(tmp_path, __EGL_VENDOR_LIBRARY_FILENAMES=str(tmp_path / "none.json"))
+    assert result["backend"] == "osmesa", result
+    assert "egl did not work" in result["choice"]
+    _assert_real_frames(frames)
+
+
+def test_no_working_backend_gives_a_clear_message(tmp_path):
+    # EGL forced, but no EGL vendor library can be found
+    result, frames = _render_in_subprocess(tmp_path, MUJOCO_GL="egl",
+                                           __EGL_VENDOR_LIBRARY_FILENAMES=str(tmp_path / "none.json"))
+    assert frames is None
+    message = result["error"]
+    assert "MUJOCO_GL=egl" in message and "apt-get install" in message and "libosmesa6" in message
+    assert result["show_returned_none"]
+
+
+def test_no_backend_at_all_is_explained(monkeypatch):
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='1'/></worldbody></mujoco>")
+    monkeypatch.delenv("MUJOCO_GL", raising=False)
+    with pytest.raises(render.RenderingUnavailable, match="No OpenGL backend.*apt-get install"):
+        render.make_renderer(model)
+
+
+def test_select_backend_reports_when_nothing_works(monkeypatch):
+    monkeypatch.delenv("MUJOCO_GL", raising=False)
+    monkeypatch.setattr(gl, "egl_works", lambda: False)
+    monkeypatch.setattr(gl, "osmesa_works", lambda: False)
+    monkeypatch.delitem(sys.modules, "mujoco", raising=False)   # restored after the test
+    monkeypatch.setattr(gl, "last_choice", gl.last_choice)
+    assert gl.select_backend() is None
+    assert "no OpenGL backend works" in gl.last_choice
+    assert "MUJOCO_GL" not in os.environ
+
+
+def test_renderer_size_is_checked():
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string("<mujoco/>")
+    with pytest.raises(ValueError, match="offscreen buffer"):
+        render.make_renderer(model, width=4000, height=3000)
+
+
+def test_nvidia_vendor_file_is_written_only_with_a_gpu(tmp_path, monkeypatch):
+    path = tmp_path / "egl_vendor.d" / "10_nvidia.json"
+    monkeypatch.setattr(gl, "_has_nvidia_gpu", lambda: False)
+    assert gl.install_nvidia_egl_vendor_file(str(path)) is False and not path.exists()
+    monkeypatch.setattr(gl, "_has_nvidia_gpu", lambda: True)
+    assert gl.install_nvidia_egl_vendor_file(str(path)) is True
+    assert json.loads(path.read_text())["ICD"]["library_path"] == "libEGL_nvidia.so.0"
