@@ -3,10 +3,8 @@
 These tests run after the book build (``bash .ci/build-book``) and read ``_build/html``; set
 ``BOOK_HTML`` to test a site built elsewhere. The browser is Debian's Chromium
 (``/usr/bin/chromium``, or ``$CHROMIUM``) driven by Playwright; no browser is ever downloaded.
-The machine that runs the tests may be offline, so MathJax, which the pages load from a CDN, is
-served from a local copy of the same major version (the ``django-static-mathjax`` package of
-requirements.txt, MathJax 3 without Django); any other request that leaves localhost is
-refused and reported.
+The site serves MathJax itself (book/_ext/local_mathjax.py), so every page must load with no
+request leaving localhost: any such request is refused and reported.
 
 Every page is loaded once; what the browser saw (console messages, requests, images, videos,
 MathJax) is recorded in a :class:`PageReport` that the individual tests check.
@@ -16,7 +14,6 @@ from __future__ import annotations
 
 import functools
 import http.server
-import importlib.util
 import json
 import os
 import re
@@ -37,7 +34,6 @@ CHROMIUM_ARGS = [
     "--disable-component-update", "--disable-sync", "--no-first-run",
     "--autoplay-policy=no-user-gesture-required",
 ]
-MATHJAX_CDN = re.compile(r"^https://cdn\.jsdelivr\.net/npm/mathjax@3(?:\.[\d.]+)?/(?P<path>[^?#]+)")
 #: Pages whose screenshots are saved under tests/artifacts/screenshots.
 SCREENSHOT_PAGES = (
     "book/intro", "book/theory", "notebooks/task1_single_joint",
@@ -96,16 +92,6 @@ def require_site() -> Path:
     return SITE
 
 
-@functools.lru_cache(maxsize=1)
-def mathjax_dir() -> Path | None:
-    """Local MathJax 3 distribution (its ``es5`` folder's parent), if installed."""
-    spec = importlib.util.find_spec("mathjax")
-    if spec is None or not spec.submodule_search_locations:
-        return None
-    root = Path(list(spec.submodule_search_locations)[0]) / "static" / "mathjax"
-    return root if (root / "es5" / "tex-mml-chtml.js").exists() else None
-
-
 # --------------------------------------------------------------------------------------------
 # A local web server for the built site
 # --------------------------------------------------------------------------------------------
@@ -142,7 +128,7 @@ class PageReport:
     page_errors: list[str] = field(default_factory=list)
     failed_requests: list[str] = field(default_factory=list)
     external_requests: list[str] = field(default_factory=list)
-    #: URL -> bytes for every resource the page loaded (local files and the served MathJax).
+    #: URL -> bytes for every local file the page loaded.
     loaded: dict[str, int] = field(default_factory=dict)
     math: dict = field(default_factory=dict)
     images: dict = field(default_factory=dict)
@@ -256,22 +242,10 @@ def browser():
 def visit(browser, server, site):
     """``visit(page) -> PageReport``; each page is loaded once per session."""
     cache: dict[str, PageReport] = {}
-    mj = mathjax_dir()
     shots = ARTIFACTS / "screenshots"
 
-    def route_external(route, request, report: PageReport):
-        url = request.url
-        m = MATHJAX_CDN.match(url)
-        if m and mj is not None:
-            target = mj / m.group("path")
-            if target.is_file():
-                body = target.read_bytes()
-                report.loaded[url] = len(body)
-                ctype = "application/javascript" if target.suffix == ".js" else (
-                    "font/woff" if target.suffix == ".woff" else "application/octet-stream")
-                return route.fulfill(status=200, body=body, content_type=ctype,
-                                     headers={"Access-Control-Allow-Origin": "*"})
-        report.external_requests.append(url)
+    def refuse_external(route, request, report: PageReport):
+        report.external_requests.append(request.url)
         return route.abort()
 
     def _visit(page: str) -> PageReport:
@@ -280,7 +254,7 @@ def visit(browser, server, site):
         report = PageReport(page)
         context = browser.new_context(viewport=VIEWPORT)
         context.route(re.compile(r"^https?://(?!127\.0\.0\.1[:/]).*"),
-                      lambda route, request: route_external(route, request, report))
+                      lambda route, request: refuse_external(route, request, report))
         tab = context.new_page()
         tab.on("console", lambda msg: report.console_errors.append(
             f"{msg.text} @ {msg.location.get('url', '')}") if msg.type == "error" else None)

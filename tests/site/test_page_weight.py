@@ -2,11 +2,11 @@
 and media are light formats (PNG/SVG figures of sensible size, MP4 video).
 
 A page's weight is counted for a first visit (nothing cached): its HTML plus every file the
-browser loaded for it (theme scripts, stylesheets, fonts, figures, videos) plus MathJax, which
-comes from a CDN. Two figures are kept for each page:
+browser loaded for it (theme scripts, stylesheets, fonts, MathJax, figures, videos) plus the
+files it refers to that a browser may load later (lazy images). Two figures are kept per page:
 
 * **transfer** — the bytes a reader downloads: text resources (HTML, CSS, JavaScript, SVG, ...)
-  are compressed on the way, as GitHub Pages and the MathJax CDN do (gzip here), while media
+  are compressed on the way, as GitHub Pages does (gzip here), while media
   (PNG, MP4, WOFF2) count as they are. This is the page weight the 3 MB limit applies to.
 * **raw** — the same files uncompressed, for information; the theme and MathJax alone are about
   3.8 MB of it, on every page.
@@ -26,7 +26,7 @@ from urllib.parse import unquote, urljoin, urlparse
 
 import pytest
 
-from sitetools import MATHJAX_CDN, SUMMARY, dump_json, mathjax_dir, require_site, toc_pages
+from sitetools import SUMMARY, dump_json, require_site, toc_pages
 from test_links import parse
 
 MB = 1_000_000
@@ -77,8 +77,6 @@ def page_weight(site: Path, page: str, loaded_urls) -> dict:
             rel = unquote(parts.path).lstrip("/")
             if rel != f"{page}.html" and (site / rel).is_file():
                 files[rel] = site / rel
-        elif (m := MATHJAX_CDN.match(url)) and mathjax_dir() is not None:
-            files[url] = mathjax_dir() / m.group("path")
     resources = [html] + [p for p in files.values() if p.is_file()]
     content = [html] + list(referenced_files(site, html, CONTENT).values())
     largest = sorted(((str(k), p.stat().st_size) for k, p in files.items() if p.is_file()),
