@@ -258,6 +258,8 @@ def grade(spec: dict, workdir: Path, notebook: str, lib: Path, check_timeout: fl
     for name in names:
         probe.deadline = time.monotonic() + check_timeout
         try:
+            if probe.start_problem is not None:  # the notebook itself never finished: nothing to check
+                raise StudentError(f"not graded: {probe.start_problem}")
             result = checks[name](probe)
         except StudentError as err:
             result = failed(name, str(err))
@@ -281,7 +283,7 @@ def grade(spec: dict, workdir: Path, notebook: str, lib: Path, check_timeout: fl
     for name in names:
         if statuses[name] == NOT_IMPLEMENTED:
             notes.append(f"{name}: not implemented yet")
-        elif statuses[name] != PASS:
+        elif statuses[name] != PASS and probe.start_problem is None:
             notes.append(f"{name}: {messages[name]}")
     return {"status": "graded", "scores": scores, "messages": messages, "notes": notes}
 
