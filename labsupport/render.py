@@ -94,7 +94,7 @@ def site_positions(model: mujoco.MjModel, q: np.ndarray, site: str = "attachment
     return out
 
 
-def render_run(model: mujoco.MjModel, run, *, fps: float = 15, width: int = 320, height: int = 240,
+def render_run(model: mujoco.MjModel, run, *, fps: float = 12, width: int = 320, height: int = 240,
                camera: str | int = "lab", trace_step: float = 0.04, progress: bool = True,
                site: str = "attachment_site", target_body: str = "target") -> np.ndarray:
     """Frames (F, height, width, 3) replaying ``run`` (a :class:`labsupport.ur5e.Ur5eRun`).
@@ -102,7 +102,8 @@ def render_run(model: mujoco.MjModel, run, *, fps: float = 15, width: int = 320,
     Each frame shows the robot at the logged joint angles, the mocap target, and the traces
     (every ``trace_step`` seconds) of the target (blue) and of the end effector (red) up to
     that instant. Shadows and reflections are off: software OpenGL renders several times
-    faster without them. A progress bar (tqdm) shows when ``progress`` is true.
+    faster without them. A progress bar (tqdm) shows while ``progress`` is true; in a
+    notebook it is erased when the video is done.
     """
     if not (np.isfinite(fps) and 0 < fps <= 60):
         raise ValueError(f"fps must be in (0, 60], got {fps!r}")
@@ -122,12 +123,9 @@ def render_run(model: mujoco.MjModel, run, *, fps: float = 15, width: int = 320,
     if mocap >= 0:
         data.mocap_quat[mocap] = run.target_quat
     frames = np.empty((len(frame_steps), height, width, 3), dtype=np.uint8)
-    steps = frame_steps
-    if progress:
-        from tqdm.auto import tqdm
-        steps = tqdm(frame_steps, desc="rendering", unit="frame", leave=False)
+    bar = _progress_bar(len(frame_steps)) if progress else None
     try:
-        for i, k in enumerate(steps):
+        for i, k in enumerate(frame_steps):
             data.qpos[:] = run.q[k]
             if mocap >= 0:
                 data.mocap_pos[mocap] = run.target[k]
@@ -139,9 +137,59 @@ def render_run(model: mujoco.MjModel, run, *, fps: float = 15, width: int = 320,
             add_trace(renderer.scene, target_trail[:upto], 3.0, TARGET_RGBA)
             add_trace(renderer.scene, ee_trail[:upto], 3.0, EE_RGBA)
             frames[i] = renderer.render()
+            if bar is not None:
+                bar.update(1)
     finally:
         renderer.close()
+        if bar is not None:
+            bar.close()
     return frames
+
+
+def _progress_bar(total: int):
+    """A tqdm bar: text in a terminal; in a notebook, a bar that is erased when done.
+
+    In a Jupyter kernel tqdm writes to a display that is updated in place and emptied at the
+    end, so an executed notebook (and the book page built from it) keeps no progress output.
+    """
+    from tqdm import tqdm
+
+    try:
+        from IPython import get_ipython
+        from IPython.display import HTML, display
+        in_kernel = get_ipython() is not None and hasattr(get_ipython(), "kernel")
+    except ImportError:
+        in_kernel = False
+    if not in_kernel:
+        return tqdm(total=total, desc="rendering", unit="frame", leave=False)
+
+    class _DisplayFile:
+        """File-like target for tqdm that shows the last line in an updatable display."""
+
+        def __init__(self):
+            self.handle = display(HTML(""), display_id=True)
+
+        def write(self, text):
+            line = text.strip("\r\n ")
+            if line:
+                self.handle.update(HTML(f"<pre style='margin:0'>{line}</pre>"))
+
+        def flush(self):
+            pass
+
+        def clear(self):
+            self.handle.update(HTML(""))
+
+    out = _DisplayFile()
+    bar = tqdm(total=total, desc="rendering", unit="frame", leave=False, file=out, ascii=False,
+               mininterval=0.5, ncols=80)
+    close = bar.close
+
+    def close_and_clear():
+        close()
+        out.clear()
+    bar.close = close_and_clear
+    return bar
 
 
 def show_video(frames: np.ndarray, fps: float, title: str | None = None, qp: int = 30) -> None:
@@ -151,7 +199,7 @@ def show_video(frames: np.ndarray, fps: float, title: str | None = None, qp: int
     mediapy.show_video(frames, fps=fps, title=title, qp=qp)
 
 
-def show_run_video(model: mujoco.MjModel, run, *, title: str | None = None, fps: float = 15,
+def show_run_video(model: mujoco.MjModel, run, *, title: str | None = None, fps: float = 12,
                    **options) -> np.ndarray | None:
     """Render ``run`` and show it; without a working OpenGL backend print why and return None."""
     try:

@@ -39,6 +39,8 @@ HOME_QUAT = (0.0, 1.0, 0.0, 0.0)
 #: Distance from the shoulder-lift axis to the wrist centre, fully stretched [m]
 #: (upper arm 0.425 + forearm 0.392), plus the wrist offsets to the attachment site.
 REACH = 0.425 + 0.392 + 0.127 + 0.1
+#: Where an unreachable target is pulled back to: 90 % of the reach, clear of the stretched-out singularity.
+SAFE_REACH = 0.9 * REACH
 _PREFIX = "scene__"
 
 
@@ -209,11 +211,25 @@ class CircleTask:
         return q / np.linalg.norm(q)
 
 
-def shoulder_distance(model: mujoco.MjModel, data: mujoco.MjData, points) -> np.ndarray:
-    """Distance of each point from the shoulder-lift joint's anchor [m] (``data`` after kinematics)."""
+def _shoulder_anchor(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
     j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "shoulder_lift_joint")
-    anchor = data.xanchor[j] if j >= 0 else np.zeros(3)
-    return np.linalg.norm(np.atleast_2d(points) - anchor, axis=-1)
+    return data.xanchor[j].copy() if j >= 0 else np.zeros(3)
+
+
+def reachable_reference(ref, anchor, radius: float, dt: float):
+    r"""The reference with every point beyond ``radius`` of ``anchor`` pulled back onto that sphere,
+
+    .. math:: x \leftarrow a + r\,\frac{x - a}{\lVert x - a\rVert}\quad\text{where}\quad \lVert x - a\rVert > r,
+
+    with velocity and acceleration recomputed by finite differences (step ``dt``), so the
+    feedforward matches the path that is actually tracked.
+    """
+    offset = ref.pos - anchor
+    dist = np.linalg.norm(offset, axis=1, keepdims=True)
+    pos = np.where(dist > radius, anchor + offset * (radius / np.maximum(dist, 1e-12)), ref.pos)
+    vel = np.gradient(pos, dt, axis=0)
+    acc = np.gradient(vel, dt, axis=0)
+    return type(ref)(pos, vel, acc)
 
 
 # ---------------------------------------------------------------------------------------
@@ -231,7 +247,8 @@ class Ur5eRun:
             actual minus target.
         tau: (N, 6) torque the controller asked for [N·m] (before the servo's limits).
         tau_applied: (N, 6) torque the servos exert (inside ``forcerange``).
-        target: (N, 3) target position [m]; ``ee`` (N, 3) the site position the controller saw.
+        target: (N, 3) target position [m] as tracked (pulled back inside the reach where the
+            task's circle leaves it); ``ee`` (N, 3) the site position the controller saw.
         target_quat: (4,) target orientation.
         saturated: (N, 6) True where the asked torque or the position command hit a limit.
         unreachable: (N,) True where the target lies beyond the arm's reach.
@@ -313,7 +330,10 @@ def run(model: mujoco.MjModel, data: mujoco.MjData, controller, task: CircleTask
     scratch = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, scratch, max(key, 0))
     mujoco.mj_kinematics(model, scratch)
-    unreachable = shoulder_distance(model, scratch, ref.pos) > REACH
+    anchor = _shoulder_anchor(model, scratch)
+    unreachable = np.linalg.norm(ref.pos - anchor, axis=1) > REACH
+    if unreachable.any():
+        ref = reachable_reference(ref, anchor, SAFE_REACH, dt)
 
     controller.bind(model, data, ref, target_quat)
     mocap = model.body(TARGET).mocapid[0] if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, TARGET) >= 0 else -1
@@ -354,7 +374,7 @@ def run(model: mujoco.MjModel, data: mujoco.MjData, controller, task: CircleTask
     saturated = ((ctrl_cmd < servo.ctrl_lo) | (ctrl_cmd > servo.ctrl_hi)
                  | (tau_log < servo.force_lo) | (tau_log > servo.force_hi))
     ee = ref.pos + err_log[:, :3]
-    notes = _saturation_notes(t, saturated, unreachable, ref.pos, err_log, model)
+    notes = _saturation_notes(t, saturated, unreachable, task.reference(t).pos, ref.pos, err_log, model)
     if notes:
         warnings.warn(" ".join(notes), RuntimeWarning, stacklevel=2)
     return Ur5eRun(t, q_log, qd_log, err_log, tau_log, tau_applied, ref.pos.copy(), ee,
@@ -371,15 +391,17 @@ def _lab_step_count(duration: float, dt: float) -> int:
     return n
 
 
-def _saturation_notes(t, saturated, unreachable, target, err, model) -> list[str]:
+def _saturation_notes(t, saturated, unreachable, asked, target, err, model) -> list[str]:
     notes = []
     if unreachable.any():
         first = int(np.flatnonzero(unreachable)[0])
         notes.append(f"The target leaves the arm's reach ({REACH:.2f} m from the shoulder) on "
                      f"{100 * unreachable.mean():.0f} % of the run (first at t = {t[first]:.2f} s, "
-                     f"target {np.array2string(target[first], precision=3)} m): the arm stretches "
-                     f"towards it and the error cannot vanish (largest position error "
-                     f"{1e3 * np.linalg.norm(err[:, :3], axis=1).max():.0f} mm).")
+                     f"asked for {np.array2string(asked[first], precision=3)} m); those points were "
+                     f"pulled back to {SAFE_REACH:.2f} m from the shoulder and tracked there "
+                     f"(at the end the flange is {1e3 * np.linalg.norm(asked[-1] - target[-1] - err[-1, :3]):.0f} mm "
+                     f"from the point asked for, {1e3 * np.linalg.norm(err[-1, :3]):.1f} mm from the "
+                     f"pulled-back one).")
     if saturated.any():
         names = [model.actuator(i).name for i in range(saturated.shape[1]) if saturated[:, i].any()]
         first = int(np.flatnonzero(saturated.any(axis=1))[0])
