@@ -12,7 +12,10 @@ Modules, one idea each:
 ``sim``                   one MuJoCo simulation loop that returns a :class:`~labsupport.sim.Log`
 ``metrics``               RMS error, cumulative effort, overshoot, settling time
 ``render``                offscreen MuJoCo video (EGL, OSMesa fallback) with mediapy
+``ur5e``                  the Menagerie UR5e with the lab's scene, loaded from any directory
+``grading``               in-notebook checks of the Problems and the batch grader
 ``plots``                 the figure layouts the notebooks share
+``book``                  glue: numbers in the book's prose come from executed outputs
 ========================  ===============================================================
 
 Importing the package chooses an OpenGL backend for MuJoCo (``MUJOCO_GL``) before MuJoCo
