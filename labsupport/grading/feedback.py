@@ -41,6 +41,10 @@ class Result:
         mark = {PASS: "✔", PARTIAL: "◐", FAIL: "✘", NOT_IMPLEMENTED: "…"}.get(self.status, "?")
         return f"{mark} [{self.name}] {self.message}"
 
+    def _ipython_display_(self) -> None:
+        """Show nothing as a cell's value: :func:`labsupport.grading.check` has already printed
+        the feedback, and a second copy as a ``Result(...)`` repr only clutters the page."""
+
 
 def passed(name: str, message: str) -> Result:
     return Result(name, 1.0, PASS, message)
