@@ -17,6 +17,8 @@ import os
 import mujoco
 import numpy as np
 
+from labsupport.sim import site_positions
+
 #: Blue target trace and red end-effector trace, as in the lab.
 TARGET_RGBA = np.array([0.0, 0.2, 1.0, 1.0], dtype=np.float32)
 EE_RGBA = np.array([1.0, 0.0, 0.0, 0.8], dtype=np.float32)
@@ -78,20 +80,6 @@ def add_trace(scene: mujoco.MjvScene, points: np.ndarray, width: float, rgba: np
         scene.ngeom += 1
         added += 1
     return added
-
-
-def site_positions(model: mujoco.MjModel, q: np.ndarray, site: str = "attachment_site") -> np.ndarray:
-    """Positions (N, 3) of ``site`` at the joint configurations ``q`` (N, nq), by forward kinematics."""
-    sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
-    if sid < 0:
-        raise ValueError(f"site {site!r} is not in the model")
-    scratch = mujoco.MjData(model)
-    out = np.empty((len(q), 3))
-    for k, qk in enumerate(q):
-        scratch.qpos[:] = qk
-        mujoco.mj_kinematics(model, scratch)
-        out[k] = scratch.site_xpos[sid]
-    return out
 
 
 def render_run(model: mujoco.MjModel, run, *, fps: float = 12, width: int = 320, height: int = 240,

@@ -224,7 +224,7 @@ def simulate(model: mujoco.MjModel, data: mujoco.MjData, controller: Controller,
     _check_finite(t_ctrl, q, qdot, dt, log_after_step)
     t = t_ctrl + dt if log_after_step else t_ctrl
     if log_after_step and site_id >= 0:
-        ee = _site_positions(model, site_id, q)
+        ee = site_positions(model, q, site_id)
     if dim:
         ref = _evaluate(reference, t_ctrl, dim)
         err = ref - ee[:, :dim]
@@ -268,9 +268,13 @@ def _evaluate(reference, t, dim):
     return np.array([np.atleast_1d(reference(float(tk)).pos) for tk in t], dtype=float).reshape(len(t), dim)
 
 
-def _site_positions(model, site_id, q):
-    """Site positions at the recorded configurations (after ``mj_step`` the kinematics in
-    ``data`` belong to the integrator's last evaluation, so they are recomputed here)."""
+def site_positions(model: mujoco.MjModel, q: np.ndarray, site: str | int) -> np.ndarray:
+    """Positions (N, 3) of ``site`` (name or id) at the configurations ``q`` (N, nq), by forward
+    kinematics on a scratch ``MjData`` (after ``mj_step`` the kinematics in ``data`` belong to
+    the integrator's last evaluation, so logged positions are recomputed with this)."""
+    site_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site) if isinstance(site, str) else int(site)
+    if site_id < 0:
+        raise ValueError(f"site {site!r} is not in the model")
     scratch = mujoco.MjData(model)
     out = np.empty((len(q), 3))
     for k, qk in enumerate(q):

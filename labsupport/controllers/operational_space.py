@@ -39,6 +39,26 @@ def _scalar_gain(name, value) -> float:
     return value
 
 
+def _inverse_dynamics_2r():
+    r"""A preallocated :math:`\tau = M(q)\,u + h(q,\dot q)` for the 2R arm, in scalar arithmetic
+    (for two joints, NumPy's per-call overhead costs more than the arithmetic)."""
+    from labsupport.dynamics import mass_matrix
+
+    M = np.zeros((2, 2))
+    M_flat = M.reshape(4)
+    tau = np.zeros(2)
+
+    def apply(model, data, u1: float, u2: float) -> np.ndarray:
+        mass_matrix(model, data, M)
+        m11, m12, m21, m22 = M_flat.tolist()
+        h1, h2 = data.qfrc_bias.tolist()
+        tau[0] = m11 * u1 + m12 * u2 + h1
+        tau[1] = m21 * u1 + m22 * u2 + h2
+        return tau
+
+    return apply
+
+
 def _check_2r(model):
     if model.nv != 2 or model.nu != 2:
         raise ValueError(f"these controllers are for the 2R arm (nv = nu = 2), got nv={model.nv}, nu={model.nu}")
@@ -59,7 +79,6 @@ def make_os_ct_2r(model, reference, Kp, Kd, arm=None, offset: float = 0.0, min_d
         arm: link lengths (:data:`labsupport.kinematics.planar_2r.LAB_ARM` by default).
         offset: use the reference at :math:`t + \text{offset}` (0: the step's start, as the lab).
     """
-    from labsupport.dynamics import mass_matrix
     from labsupport.kinematics.planar_2r import LAB_ARM
     from labsupport.sim import SampledReference
 
@@ -70,9 +89,7 @@ def make_os_ct_2r(model, reference, Kp, Kd, arm=None, offset: float = 0.0, min_d
     ref = SampledReference(reference, model.opt.timestep, offset)
     if ref.dim != 2:
         raise ValueError(f"reference must be planar (2 components), got {ref.dim}")
-    M = np.zeros((2, 2))
-    M_flat = M.reshape(4)
-    tau = np.zeros(2)
+    apply = _inverse_dynamics_2r()
     cos, sin = math.cos, math.sin
 
     def controller(model, data):
@@ -93,13 +110,7 @@ def make_os_ct_2r(model, reference, Kp, Kd, arm=None, offset: float = 0.0, min_d
             raise ValueError(f"the Jacobian is singular at q = ({q1:.4f}, {q2:.4f}) (det J = {det:.3g}): "
                              "the arm is stretched out or folded; keep the path inside the workspace")
         u1, u2 = (j22 * a1 - j12 * a2) / det, (j11 * a2 - j21 * a1) / det
-        # tau = M qddot + h
-        mass_matrix(model, data, M)
-        m11, m12, m21, m22 = M_flat.tolist()
-        h1, h2 = data.qfrc_bias.tolist()
-        tau[0] = m11 * u1 + m12 * u2 + h1
-        tau[1] = m21 * u1 + m22 * u2 + h2
-        return tau
+        return apply(model, data, u1, u2)
 
     return controller
 
@@ -116,7 +127,6 @@ def make_ik_ct_2r(model, reference, Kp, Kd, arm=None, branch: str = "up", offset
 
     .. math:: \tau = M(q)\big(\ddot q_d + K_d(\dot q_d - \dot q) + K_p(q_d - q)\big) + h(q,\dot q)
     """
-    from labsupport.dynamics import mass_matrix
     from labsupport.kinematics.planar_2r import LAB_ARM, joint_reference
     from labsupport.sim import SampledReference
 
@@ -124,9 +134,7 @@ def make_ik_ct_2r(model, reference, Kp, Kd, arm=None, branch: str = "up", offset
     arm = LAB_ARM if arm is None else arm
     Kp, Kd = _scalar_gain("Kp", Kp), _scalar_gain("Kd", Kd)
     ref = SampledReference(lambda t: joint_reference(reference(t), arm, branch), model.opt.timestep, offset)
-    M = np.zeros((2, 2))
-    M_flat = M.reshape(4)
-    tau = np.zeros(2)
+    apply = _inverse_dynamics_2r()
 
     def controller(model, data):
         q1, q2 = data.qpos.tolist()
@@ -134,11 +142,6 @@ def make_ik_ct_2r(model, reference, Kp, Kd, arm=None, branch: str = "up", offset
         p1, p2, v1, v2, a1, a2 = ref.at(data.time)
         u1 = a1 + Kd * (v1 - w1) + Kp * (p1 - q1)
         u2 = a2 + Kd * (v2 - w2) + Kp * (p2 - q2)
-        mass_matrix(model, data, M)
-        m11, m12, m21, m22 = M_flat.tolist()
-        h1, h2 = data.qfrc_bias.tolist()
-        tau[0] = m11 * u1 + m12 * u2 + h1
-        tau[1] = m21 * u1 + m22 * u2 + h2
-        return tau
+        return apply(model, data, u1, u2)
 
     return controller
