@@ -59,3 +59,26 @@ def save_without_outputs(nb: nbformat.NotebookNode, path: Path) -> None:
             cell.execution_count = None
     nb.metadata.setdefault("kernelspec", {"name": "python3", "display_name": "Python 3", "language": "python"})
     nbformat.write(nb, str(path))
+
+
+def sync_install_cells() -> list[Path]:
+    """Rewrite every notebook's first code cell from ``_config.yml`` (after the repository moved).
+
+    Returns the notebooks that changed. The Problems' student notebooks are generated from the
+    masters, so run ``python -m labsupport.grading.assign`` afterwards.
+    """
+    changed = []
+    for path in notebook_paths():
+        nb = nbformat.read(str(path), as_version=4)
+        first = next(c for c in nb.cells if c.cell_type == "code")
+        if first.source != install_cell_source() or first.metadata.get("tags") != INSTALL_CELL_TAGS:
+            first.source = install_cell_source()
+            first.metadata["tags"] = list(INSTALL_CELL_TAGS)
+            nbformat.write(nb, str(path))
+            changed.append(path)
+    return changed
+
+
+if __name__ == "__main__":
+    for changed_path in sync_install_cells():
+        print(f"updated the install cell of {changed_path.relative_to(ROOT)}")
