@@ -98,26 +98,36 @@ def _pd_mistakes(state, q_d, Kp, Kd, h):
     }
 
 
+def _check_joint_law(probe: Probe, name: str, label: str, function: str, seed: int, gains, law,
+                     mistakes, summary: str) -> Result:
+    """Compare the student's ``function(data, q_d, Kp, Kd)`` with ``law(M, h, state, q_d, Kp, Kd)``
+    at seeded states; on a mismatch, name the mistake ``mistakes(M, h, state, q_d, Kp, Kd)`` explains."""
+    model, _ = arm()
+    rng = np.random.default_rng(seed)
+    for state in random_states(seed, 4):
+        q_d = state.q + rng.uniform(-0.5, 0.5, 3)
+        Kp, Kd = float(rng.uniform(*gains[0])), float(rng.uniform(*gains[1]))
+        M, h, _ = dynamics_at(model, state)
+        expected = law(M, h, state, q_d, Kp, Kd)
+        try:
+            tau = as_vector(function, probe.call(function, state, q_d, Kp, Kd), 3, "torque")
+        except NotImplementedYet:
+            return not_implemented(name, f"{label}: not implemented yet ({function} returned None)")
+        except StudentError as err:
+            return failed(name, f"{label}: {err}")
+        if not close(tau, expected):
+            _, text, score = diagnose(tau, expected, mistakes(M, h, state, q_d, Kp, Kd))
+            return failed(name, f"{label}: {text}", score)
+    return passed(name, f"{label}: {function} gives {summary} at every test state.")
+
+
 def check_pd(probe: Probe) -> Result:
     """``pd_torque`` against :math:`K_p(q_d-q) - K_d\\dot q` at seeded states."""
-    name = "p1_pd"
-    model, _ = arm()
-    rng = np.random.default_rng(21)
-    for state in random_states(21, 4):
-        q_d = state.q + rng.uniform(-0.5, 0.5, 3)
-        Kp, Kd = float(rng.uniform(100, 500)), float(rng.uniform(10, 60))
-        expected = Kp * (q_d - state.q) - Kd * state.qdot
-        try:
-            tau = as_vector("pd_torque", probe.call("pd_torque", state, q_d, Kp, Kd), 3, "torque")
-        except NotImplementedYet:
-            return not_implemented(name, "PD: not implemented yet (pd_torque returned None)")
-        except StudentError as err:
-            return failed(name, f"PD: {err}")
-        if not close(tau, expected):
-            _, h, _ = dynamics_at(model, state)
-            _, text, score = diagnose(tau, expected, _pd_mistakes(state, q_d, Kp, Kd, h))
-            return failed(name, f"PD: {text}", score)
-    return passed(name, "PD: pd_torque gives Kp (q_d − q) − Kd q̇ at every test state.")
+    return _check_joint_law(
+        probe, "p1_pd", "PD", "pd_torque", 21, ((100, 500), (10, 60)),
+        lambda M, h, state, q_d, Kp, Kd: Kp * (q_d - state.q) - Kd * state.qdot,
+        lambda M, h, state, q_d, Kp, Kd: _pd_mistakes(state, q_d, Kp, Kd, h),
+        "Kp (q_d − q) − Kd q̇")
 
 
 def _ct_mistakes(M, h, state, q_d, Kp, Kd):
@@ -136,24 +146,10 @@ def _ct_mistakes(M, h, state, q_d, Kp, Kd):
 
 def check_ct(probe: Probe) -> Result:
     """``ct_joint_torque`` against :math:`M(q)(K_p e - K_d\\dot q) + h` at seeded states."""
-    name = "p1_ct"
-    model, _ = arm()
-    rng = np.random.default_rng(31)
-    for state in random_states(31, 4):
-        q_d = state.q + rng.uniform(-0.5, 0.5, 3)
-        Kp, Kd = float(rng.uniform(50, 150)), float(rng.uniform(5, 25))
-        M, h, _ = dynamics_at(model, state)
-        expected = M @ (Kp * (q_d - state.q) - Kd * state.qdot) + h
-        try:
-            tau = as_vector("ct_joint_torque", probe.call("ct_joint_torque", state, q_d, Kp, Kd), 3, "torque")
-        except NotImplementedYet:
-            return not_implemented(name, "CT: not implemented yet (ct_joint_torque returned None)")
-        except StudentError as err:
-            return failed(name, f"CT: {err}")
-        if not close(tau, expected):
-            _, text, score = diagnose(tau, expected, _ct_mistakes(M, h, state, q_d, Kp, Kd))
-            return failed(name, f"CT: {text}", score)
-    return passed(name, "CT: ct_joint_torque gives M(q)(Kp e − Kd q̇) + h(q, q̇) at every test state.")
+    return _check_joint_law(
+        probe, "p1_ct", "CT", "ct_joint_torque", 31, ((50, 150), (5, 25)),
+        lambda M, h, state, q_d, Kp, Kd: M @ (Kp * (q_d - state.q) - Kd * state.qdot) + h,
+        _ct_mistakes, "M(q)(Kp e − Kd q̇) + h(q, q̇)")
 
 
 def check_reach(probe: Probe) -> Result:

@@ -57,22 +57,21 @@ class Spatial3R:
 LAB_ARM = Spatial3R()
 
 
-def _joint_vector(q, name: str = "q") -> np.ndarray:
-    q = np.asarray(q, dtype=float)
-    if q.shape != (3,):
-        raise ValueError(f"{name} must be three joint values, shape (3,); got shape {q.shape}")
-    if not np.all(np.isfinite(q)):
-        raise ValueError(f"{name} must be finite, got {q}")
-    return q
-
-
-def _point(x, name: str = "target") -> np.ndarray:
+def _vector3(x, name: str, what: str) -> np.ndarray:
     x = np.asarray(x, dtype=float)
     if x.shape != (3,):
-        raise ValueError(f"{name} must be a 3-D point, shape (3,); got shape {x.shape}")
+        raise ValueError(f"{name} must be {what}, shape (3,); got shape {x.shape}")
     if not np.all(np.isfinite(x)):
         raise ValueError(f"{name} must be finite, got {x}")
     return x
+
+
+def _joint_vector(q, name: str = "q") -> np.ndarray:
+    return _vector3(q, name, "three joint values")
+
+
+def _point(x, name: str = "target") -> np.ndarray:
+    return _vector3(x, name, "a 3-D point")
 
 
 def forward_kinematics(q, arm: Spatial3R = LAB_ARM) -> np.ndarray:
