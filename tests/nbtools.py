@@ -1,8 +1,8 @@
 """Conventions every notebook follows, shared by the tests and by whoever writes a notebook.
 
-* The first cell is :func:`install_cell_source` with the repository URL of ``_config.yml``,
-  tagged ``hide-input`` and ``remove-output``: on Colab it installs labsupport, elsewhere it
-  does nothing.
+* The first code cell is :func:`install_cell_source` with the repository URL of ``_config.yml``,
+  tagged ``hide-input`` and ``remove-output``: where labsupport is missing (a fresh Colab
+  runtime, a downloaded notebook) it installs it; where it is installed it does nothing.
 * Notebooks are committed without outputs; the book build and nbval execute them.
 """
 
@@ -27,12 +27,14 @@ def install_cell_source(url: str | None = None, branch: str = "main") -> str:
     """The exact source of every notebook's first cell."""
     url = url or repository_url()
     return (
-        "# Set-up: on Colab, install labsupport (with its models and pinned dependencies)\n"
-        "# from the course repository. Anywhere else this cell does nothing.\n"
-        "import subprocess, sys\n"
-        'if "google.colab" in sys.modules:\n'
+        "# Set-up: where labsupport is missing (a fresh Colab runtime, a downloaded notebook),\n"
+        "# install it with its models and pinned dependencies from the course repository.\n"
+        "# Where it is installed already, this cell does nothing.\n"
+        "import importlib, importlib.util, subprocess, sys\n"
+        'if importlib.util.find_spec("labsupport") is None:\n'
         '    subprocess.run([sys.executable, "-m", "pip", "install", "-q",\n'
-        f'                    "labsupport @ git+{url}@{branch}"], check=True)'
+        f'                    "labsupport @ git+{url}@{branch}"], check=True)\n'
+        "    importlib.invalidate_caches()"
     )
 
 

@@ -1,11 +1,11 @@
 """Every notebook starts with the same install cell, built from the repository URL of
-``_config.yml``: it installs labsupport on Colab, does nothing elsewhere, and is hidden on the page."""
+``_config.yml``: it installs labsupport where it is missing (Colab), does nothing where it is
+installed, and is hidden on the page."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
-import types
 from unittest import mock
 
 import nbformat
@@ -57,31 +57,37 @@ def test_install_cell_uses_the_configured_repository():
     assert "git+https://github.com/someone/else@" in other and url not in other
 
 
-def _run_install_cell(on_colab: bool) -> list:
-    """Execute the install cell with ``subprocess.run`` recorded instead of run."""
+def _run_install_cell(installed: bool) -> list:
+    """Execute the install cell with ``subprocess.run`` recorded instead of run, and with
+    labsupport found or not found by the import system."""
+    import importlib.util
+
     calls = []
 
     def fake_run(args, **kwargs):
         calls.append((args, kwargs))
         return subprocess.CompletedProcess(args, 0)
 
-    modules = dict(sys.modules)
-    if on_colab:
-        modules["google.colab"] = types.ModuleType("google.colab")
-    else:
-        modules.pop("google.colab", None)
-    with mock.patch.dict(sys.modules, modules, clear=True), \
-            mock.patch.object(subprocess, "run", fake_run):
+    real_find_spec = importlib.util.find_spec
+
+    def fake_find_spec(name, *args, **kwargs):
+        if name == "labsupport":
+            return real_find_spec(name) if installed else None
+        return real_find_spec(name, *args, **kwargs)
+
+    with mock.patch.object(subprocess, "run", fake_run), \
+            mock.patch.object(importlib.util, "find_spec", fake_find_spec):
         exec(compile(nbtools.install_cell_source(), "<install cell>", "exec"), {})
     return calls
 
 
-def test_install_cell_does_nothing_outside_colab():
-    assert _run_install_cell(on_colab=False) == []
+def test_install_cell_does_nothing_where_labsupport_is_installed():
+    assert _run_install_cell(installed=True) == []
 
 
-def test_install_cell_installs_labsupport_on_colab():
-    calls = _run_install_cell(on_colab=True)
+def test_install_cell_installs_labsupport_where_it_is_missing():
+    """A fresh Colab runtime (or a downloaded notebook in a bare environment)."""
+    calls = _run_install_cell(installed=False)
     assert len(calls) == 1
     args, kwargs = calls[0]
     assert args[:4] == [sys.executable, "-m", "pip", "install"]

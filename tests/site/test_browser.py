@@ -116,7 +116,7 @@ def test_install_cell_hidden_on_pages():
     site = require_site()
     for page in NOTEBOOK_PAGES:
         html = (site / f"{page}.html").read_text(encoding="utf-8")
-        i = html.find("google.colab")
+        i = html.find("find_spec")
         assert i > 0, f"{page}: install cell missing"
         start = html.rfind('<div class="cell ', 0, i)
         tag = html[start:html.find(">", start)]
