@@ -47,16 +47,6 @@ def install_nvidia_egl_vendor_file(path: str = NVIDIA_EGL_VENDOR_FILE) -> bool:
     return True
 
 
-def available_backends() -> list[str]:
-    """The MuJoCo GL backends whose system libraries can be found, best first."""
-    found = []
-    if ctypes.util.find_library("EGL"):
-        found.append("egl")
-    if ctypes.util.find_library("OSMesa"):
-        found.append("osmesa")
-    return found
-
-
 def egl_works() -> bool:
     """True when EGL can open a headless display the way MuJoCo does (a GPU, or Mesa's llvmpipe).
 

@@ -21,7 +21,6 @@ from labsupport.kinematics import spatial_3r
 #: The Problem's numbers.
 Q0 = np.array([0.0, np.pi / 6, -np.pi / 4])  # initial configuration [rad]
 DURATION = 5.0  # [s]
-KP_PD, KD_PD = 400.0, 50.0  # joint PD gains
 WN_CT, ZETA_CT = 10.0, 0.9  # computed-torque design
 KP_CT, KD_CT = WN_CT**2, 2 * ZETA_CT * WN_CT
 REACH_TOL = 1e-3  # final end-effector error the computed torque must reach [m]
