@@ -17,7 +17,9 @@ from nbclient import NotebookClient
 import labsupport  # noqa: F401
 from labsupport.controllers import joint_space
 from labsupport.dynamics import bias_forces, mass_matrix
-from labsupport.grading import assign, check, problem1, problem2
+from labsupport.grading import check
+from labsupport.instructor import assign
+from labsupport.grading import problem1, problem2
 from labsupport.grading.feedback import PASS, NOT_IMPLEMENTED, DirectProbe
 from labsupport.kinematics import spatial_3r
 
@@ -95,7 +97,7 @@ def test_student_notebooks_match_the_masters():
     files = assign.outputs(ROOT)
     assert len(files) == 4
     for path, text in files.items():
-        assert path.read_text(encoding="utf-8") == text, f"{path} drifted: run python -m labsupport.grading.assign"
+        assert path.read_text(encoding="utf-8") == text, f"{path} drifted: run python -m labsupport.instructor.assign"
 
 
 def test_student_notebooks_hide_the_solutions():
@@ -171,7 +173,7 @@ def batch(tmp_path_factory):
     code_before = _grader_hash()
     out = tmp_path_factory.mktemp("grades")
     start = time.monotonic()
-    proc = subprocess.run([sys.executable, "-m", "labsupport.grading.batch", "--problem", "problem1", str(subs),
+    proc = subprocess.run([sys.executable, "-m", "labsupport.instructor.batch", "--problem", "problem1", str(subs),
                            "--out", str(out), "--jobs", "2", "--timeout", str(TIMEOUT)],
                           cwd=ROOT, capture_output=True, text=True, timeout=900)
     elapsed = time.monotonic() - start
@@ -220,7 +222,7 @@ def test_masters_get_full_marks_on_problem2(tmp_path):
     subs.mkdir()
     shutil.copy(ROOT / "notebooks" / "masters" / "problem2_tracking.ipynb", subs / "master.ipynb")
     shutil.copy(ROOT / "notebooks" / "problem2_tracking.ipynb", subs / "student.ipynb")
-    subprocess.run([sys.executable, "-m", "labsupport.grading.batch", "--problem", "problem2", str(subs),
+    subprocess.run([sys.executable, "-m", "labsupport.instructor.batch", "--problem", "problem2", str(subs),
                     "--out", str(tmp_path / "out"), "--timeout", "300"], cwd=ROOT, check=True, capture_output=True)
     with open(tmp_path / "out" / "grades.csv", newline="", encoding="utf-8") as f:
         rows = {r["file"]: r for r in csv.DictReader(f)}

@@ -1,4 +1,4 @@
-"""Checks behind the Problems' in-notebook feedback, and the batch grader.
+"""Checks behind the Problems' in-notebook feedback (the batch grader is instructor tooling: :mod:`labsupport.instructor`).
 
 In a notebook::
 
@@ -6,7 +6,7 @@ In a notebook::
     check("p1_ik", globals())      # prints plain-words feedback on ik_3r
 
 ``check`` runs the same check functions the batch grader runs; the grader runs them outside
-the submission's process (:mod:`labsupport.grading.judge`), so nothing a notebook does to its
+the submission's process (:mod:`labsupport.instructor.judge`), so nothing a notebook does to its
 own copy of labsupport or of the grader changes its grade.
 
 Modules:
@@ -16,10 +16,6 @@ Modules:
 ``common``          test states, mistake diagnosis, a simulation driven by student code
 ``problem1``        Problem 1 checks (IK, PD, CT, reach)
 ``problem2``        Problem 2 checks (start, OS-CT, IK + JS-CT, tracking)
-``assign``          master notebook → student notebook + autograder spec
-``sandbox``         the process that runs one submission and answers calls into it
-``judge``           grades one submission through a sandbox
-``batch``           grades a folder of submissions into a CSV and feedback files
 ==================  ===================================================================
 """
 

@@ -3,7 +3,7 @@ r"""What a check reports, and how the checks reach a student's code.
 A check never touches a student's function directly: it asks a :class:`Probe` to call it by
 name. :class:`DirectProbe` calls into a live namespace (the notebook's ``globals()``, for the
 in-notebook feedback); the batch grader's probe forwards the same calls to a separate process
-that ran the submission (:mod:`labsupport.grading.judge`). Either way the check gets plain
+that ran the submission (:mod:`labsupport.instructor.judge`). Either way the check gets plain
 arrays back, or a :class:`StudentError` whose message says in plain words what went wrong.
 
 Arguments that stand for MuJoCo's ``(model, data)`` pair are passed as a :class:`State`; the

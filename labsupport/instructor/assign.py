@@ -2,8 +2,8 @@
 
 Usage (from the repository root)::
 
-    .venv/bin/python -m labsupport.grading.assign            # write notebooks/*.ipynb and tests/autograder/*.json
-    .venv/bin/python -m labsupport.grading.assign --check    # exit 1 if what is committed differs
+    .venv/bin/python -m labsupport.instructor.assign            # write notebooks/*.ipynb and tests/autograder/*.json
+    .venv/bin/python -m labsupport.instructor.assign --check    # exit 1 if what is committed differs
 
 A master (``notebooks/masters/*.ipynb``) holds the solution and the checks, in the spirit of
 ``otter assign``:

@@ -1,11 +1,11 @@
 """Grade one submission: run it in a sandbox process, then run the grader's own checks against it.
 
-``python -m labsupport.grading.judge --spec SPEC --workdir DIR --notebook NAME --lib LIB``
+``python -m labsupport.instructor.judge --spec SPEC --workdir DIR --notebook NAME --lib LIB``
 prints one JSON object (the row and the feedback) on stdout. The batch grader
-(:mod:`labsupport.grading.batch`) starts one judge per submission.
+(:mod:`labsupport.instructor.batch`) starts one judge per submission.
 
 The checks run here, in a process the submission never touches: the sandbox
-(:mod:`labsupport.grading.sandbox`) only ever sends back plain numbers. Every simulation the
+(:mod:`labsupport.instructor.sandbox`) only ever sends back plain numbers. Every simulation the
 checks run uses this process's MuJoCo model and loop; the submission's code is called once per
 control step, for its torque.
 """
@@ -76,7 +76,7 @@ class SandboxProbe(Probe):
             resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu))
             resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
 
-        self.proc = subprocess.Popen([sys.executable, "-m", "labsupport.grading.sandbox"], cwd=self.workdir,
+        self.proc = subprocess.Popen([sys.executable, "-m", "labsupport.instructor.sandbox"], cwd=self.workdir,
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                                      env=self._env(), preexec_fn=limits)
         try:

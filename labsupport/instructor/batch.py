@@ -2,7 +2,7 @@
 
 Usage (from the repository root)::
 
-    .venv/bin/python -m labsupport.grading.batch --problem problem1 SUBMISSIONS --out grades/problem1
+    .venv/bin/python -m labsupport.instructor.batch --problem problem1 SUBMISSIONS --out grades/problem1
 
 ``--problem NAME`` reads the autograder spec ``tests/autograder/NAME.json`` (or give
 ``--spec PATH``). Every ``*.ipynb`` in SUBMISSIONS gets a row in ``OUT/grades.csv`` (a score
@@ -12,9 +12,9 @@ file does.
 How a submission is isolated:
 
 * its bytes are read once, up front, and copied into a scratch folder of its own, next to a
-  fresh copy of labsupport; it runs there (:mod:`labsupport.grading.sandbox`), never in the
+  fresh copy of labsupport; it runs there (:mod:`labsupport.instructor.sandbox`), never in the
   submissions folder;
-* a judge process per submission (:mod:`labsupport.grading.judge`) runs the checks with the
+* a judge process per submission (:mod:`labsupport.instructor.judge`) runs the checks with the
   grader's own copy of labsupport, restored from memory before each judge starts; the
   submission only ever hands back numbers;
 * each judge has a time limit (the row then says so), and ``--jobs`` run at once;
@@ -105,7 +105,7 @@ def grade_one(index: int, name: str, data: bytes | None, read_error: str | None,
     env = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON")}
     env.update(PYTHONPATH=str(grader_lib), PYTHONNOUSERSITE="1", PYTHONDONTWRITEBYTECODE="1",
                OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
-    cmd = [sys.executable, "-m", "labsupport.grading.judge", "--spec", str(spec_path), "--workdir", str(work),
+    cmd = [sys.executable, "-m", "labsupport.instructor.judge", "--spec", str(spec_path), "--workdir", str(work),
            "--notebook", name, "--lib", str(scratch / "lib"),
            "--run-timeout", str(max(10.0, 0.4 * timeout)), "--check-timeout", str(max(10.0, 0.15 * timeout))]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, cwd=scratch,
@@ -252,7 +252,7 @@ def main(argv=None) -> None:
     parser.add_argument("submissions", type=Path, help="folder holding the students' .ipynb files")
     which = parser.add_mutually_exclusive_group(required=True)
     which.add_argument("--problem", help="problem1 or problem2 (reads tests/autograder/NAME.json)")
-    which.add_argument("--spec", type=Path, help="an autograder spec written by labsupport.grading.assign")
+    which.add_argument("--spec", type=Path, help="an autograder spec written by labsupport.instructor.assign")
     parser.add_argument("--out", type=Path, required=True, help="folder for grades.csv and feedback/")
     parser.add_argument("--jobs", type=int, default=None, help="submissions graded at once (default: CPU count)")
     parser.add_argument("--timeout", type=float, default=240.0, help="time limit per submission [s]")

@@ -1,6 +1,6 @@
 """The process that runs one submission and answers the judge's calls into it.
 
-Started by :mod:`labsupport.grading.judge` as ``python -m labsupport.grading.sandbox`` in the
+Started by :mod:`labsupport.instructor.judge` as ``python -m labsupport.instructor.sandbox`` in the
 submission's scratch folder, with its own copy of labsupport on ``PYTHONPATH``. It speaks JSON
 lines on the pipes it was started with (requests on stdin, answers on stdout); before any
 student code runs, those pipes are moved to private descriptors and the student's prints go to
@@ -57,7 +57,7 @@ def _snapshot(prefixes=("labsupport", "mujoco", "numpy")):
     """Identity of every public attribute of the modules the grader relies on."""
     snap = {}
     for name, mod in list(sys.modules.items()):
-        if mod is None or not name.split(".")[0] in prefixes or name.startswith("labsupport.grading.sandbox"):
+        if mod is None or not name.split(".")[0] in prefixes or name.startswith("labsupport.instructor.sandbox"):
             continue
         try:
             snap[name] = {k: id(v) for k, v in vars(mod).items() if not k.startswith("_")}

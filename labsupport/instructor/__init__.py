@@ -1,0 +1,13 @@
+"""Instructor tooling: generating the Problems from their masters, and batch grading.
+
+This package lives in the course repository only. It is *not* part of what a student installs
+(``pyproject.toml`` leaves it out of the wheel that Colab gets), so nothing in it is within a
+submission's reach: run it from a checkout of the course repository.
+
+==================  ===================================================================
+``assign``          master notebook → student notebook + autograder spec
+``sandbox``         the process that runs one submission and answers calls into it
+``judge``           grades one submission through a sandbox
+``batch``           grades a folder of submissions into a CSV and feedback files
+==================  ===================================================================
+"""
