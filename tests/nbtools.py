@@ -67,7 +67,7 @@ def sync_install_cells() -> list[Path]:
     """Rewrite every notebook's first code cell from ``_config.yml`` (after the repository moved).
 
     Returns the notebooks that changed. The Problems' student notebooks are generated from the
-    masters, so run ``python -m labsupport.grading.assign`` afterwards.
+    masters, so run ``python -m labsupport.instructor.assign`` afterwards.
     """
     changed = []
     for path in notebook_paths():
