@@ -1,0 +1,47 @@
+"""WCAG 2.1 AA on every page of the built site, checked by axe-core in a real Chromium.
+
+axe-core comes with ``axe-playwright-python`` (it ships ``axe.min.js``; nothing is downloaded).
+Each page is loaded once, axe runs with the WCAG 2.0/2.1 A and AA rule tags, and every
+violation is reported with the rule, its impact and the first offending elements, so the
+message says what to fix.
+"""
+
+from __future__ import annotations
+
+import pytest
+from sitetools import SUMMARY, VIEWPORT, dump_json, toc_pages
+
+WCAG_TAGS = ["wcag2a", "wcag2aa", "wcag21a", "wcag21aa"]
+
+
+@pytest.fixture(scope="module")
+def axe():
+    from axe_playwright_python.sync_playwright import Axe
+
+    return Axe()
+
+
+def _describe(violation: dict) -> str:
+    nodes = violation.get("nodes", [])
+    where = "; ".join(" ".join(n.get("target", [])) for n in nodes[:3])
+    more = f" (+{len(nodes) - 3} more)" if len(nodes) > 3 else ""
+    return f"{violation['id']} [{violation.get('impact')}]: {violation['help']} at {where}{more}"
+
+
+@pytest.mark.parametrize("page", toc_pages())
+def test_page_meets_wcag21_aa(browser, server, axe, page):
+    context = browser.new_context(viewport=VIEWPORT)
+    try:
+        tab = context.new_page()
+        tab.route("**/*", lambda route, request: route.continue_() if request.url.startswith(server)
+                  else route.abort())
+        tab.goto(f"{server}/{page}.html", wait_until="load")
+        tab.evaluate("async () => { if (window.MathJax?.startup?.promise) await MathJax.startup.promise; }")
+        results = axe.run(tab, options={"runOnly": {"type": "tag", "values": WCAG_TAGS},
+                                        "resultTypes": ["violations"]})
+    finally:
+        context.close()
+    violations = results.response["violations"]
+    dump_json(f"axe__{page.replace('/', '__')}.json", violations)
+    SUMMARY.append(f"axe WCAG 2.1 AA {page}: {len(violations)} violations")
+    assert not violations, f"{page}: " + " | ".join(_describe(v) for v in violations)
