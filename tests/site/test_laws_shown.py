@@ -1,0 +1,75 @@
+"""Every Task page, as built, shows the code of every control law it runs.
+
+A Task notebook runs laws it imports from ``labsupport.controllers``; each of them must be shown
+on the page with ``labsupport.book.show_law``, so the built HTML holds a highlighted code block
+with that function's ``def``. The code comes from the package itself, so it is compared with
+``inspect.getsource`` of the installed function: page and package cannot disagree.
+"""
+
+from __future__ import annotations
+
+import ast
+import importlib
+import inspect
+import json
+import re
+
+import pytest
+from bs4 import BeautifulSoup
+from sitetools import ROOT, require_site
+
+TASKS = ["task1_single_joint", "task2_single_joint_mujoco", "task3_planar_2r", "task4_ur5e"]
+CONTROLLERS = "labsupport.controllers"
+
+
+def _code(notebook: str) -> str:
+    nb = json.loads((ROOT / "notebooks" / f"{notebook}.ipynb").read_text(encoding="utf-8"))
+    cells = ["".join(c["source"]) for c in nb["cells"] if c["cell_type"] == "code"]
+    # IPython magics and shell escapes are not Python
+    return "\n".join(line for cell in cells for line in cell.splitlines() if not line.lstrip().startswith(("%", "!")))
+
+
+def laws_run(notebook: str) -> dict[str, object]:
+    """The controller functions a notebook uses: ``{name: function}``, from its imports of
+    ``labsupport.controllers`` (``from ... import f`` or a module alias used as ``alias.f``)."""
+    tree = ast.parse(_code(notebook))
+    functions: dict[str, object] = {}
+    aliases: dict[str, object] = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith(CONTROLLERS):
+            module = importlib.import_module(node.module)
+            for a in node.names:
+                obj = getattr(module, a.name, None)
+                if obj is None:
+                    obj = importlib.import_module(f"{node.module}.{a.name}")
+                (aliases if inspect.ismodule(obj) else functions)[a.asname or a.name] = obj
+        elif isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.startswith(CONTROLLERS) and a.asname:
+                    aliases[a.asname] = importlib.import_module(a.name)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in aliases:
+            obj = getattr(aliases[node.value.id], node.attr, None)
+            if inspect.isfunction(obj):
+                functions[node.attr] = obj
+    return {name: f for name, f in functions.items() if inspect.isfunction(f)}
+
+
+def shown_code_blocks(notebook: str) -> list[str]:
+    html = (require_site() / "notebooks" / f"{notebook}.html").read_text(encoding="utf-8")
+    soup = BeautifulSoup(html, "html.parser")
+    return [block.get_text() for block in soup.select("main div.highlight pre")]
+
+
+@pytest.mark.parametrize("notebook", TASKS)
+def test_every_law_run_is_shown(notebook):
+    laws = laws_run(notebook)
+    assert laws, f"{notebook} runs no law from {CONTROLLERS}: the test's parser found nothing"
+    blocks = shown_code_blocks(notebook)
+    missing = []
+    for name, fn in laws.items():
+        source = inspect.getsource(fn).strip()
+        if not any(source in re.sub(r"\r\n", "\n", b) for b in blocks):
+            missing.append(f"{fn.__module__}.{fn.__name__}")
+    assert not missing, (f"{notebook}: the page runs these laws but does not show their current code "
+                         f"(use labsupport.book.show_law): {missing}")
