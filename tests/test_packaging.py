@@ -8,13 +8,27 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_wheel_ships_every_model(tmp_path):
+def _wheel_names(tmp_path) -> set[str]:
+    """File names inside the wheel pip builds from the checkout: what a student installs."""
     subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(tmp_path), str(ROOT)],
                    check=True, capture_output=True)
     wheel = next(tmp_path.glob("labsupport-*.whl"))
-    names = set(zipfile.ZipFile(wheel).namelist())
+    return set(zipfile.ZipFile(wheel).namelist())
+
+
+def test_wheel_ships_every_model(tmp_path):
+    names = _wheel_names(tmp_path)
     for xml in (ROOT / "models").glob("*.xml"):
         assert f"labsupport/models/{xml.name}" in names
+
+
+def test_wheel_holds_no_instructor_tooling_and_no_answers(tmp_path):
+    """What Colab installs for a student: no batch grader, no masters, no 3R solutions."""
+    names = _wheel_names(tmp_path)
+    assert any(n.startswith("labsupport/grading/") for n in names)  # the in-notebook checks ship
+    assert not [n for n in names if n.startswith("labsupport/instructor/")]
+    assert not [n for n in names if "spatial_3r" in n and n.endswith(".py")]
+    assert not [n for n in names if n.endswith(".ipynb")]
 
 
 def test_models_load_from_any_working_directory(tmp_path):
