@@ -16,6 +16,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from labsupport import metrics, validate
+
 
 class Gains(NamedTuple):
     """Proportional and derivative gains."""
@@ -32,17 +34,11 @@ class SecondOrder(NamedTuple):
 
 
 def _positive(name: str, value: float) -> float:
-    value = float(value)
-    if not np.isfinite(value) or value <= 0:
-        raise ValueError(f"{name} must be a positive number, got {value!r}")
-    return value
+    return validate.number(name, value, positive=True)
 
 
 def _non_negative(name: str, value: float) -> float:
-    value = float(value)
-    if not np.isfinite(value) or value < 0:
-        raise ValueError(f"{name} must be a non-negative number, got {value!r}")
-    return value
+    return validate.number(name, value, nonnegative=True)
 
 
 def pd_gains(M: float, b: float, wn: float, zeta: float) -> Gains:
@@ -57,7 +53,8 @@ def pd_gains(M: float, b: float, wn: float, zeta: float) -> Gains:
     if Kd < 0:
         raise ValueError(
             f"zeta={zeta:g} with wn={wn:g} needs Kd={Kd:.3g} < 0: friction b={b:g} already "
-            "damps more than that; raise wn or zeta")
+            "damps more than that; raise wn or zeta"
+        )
     return Gains(M * wn**2, Kd)
 
 
@@ -114,16 +111,15 @@ def spec_gains(M: float, b: float, percent_overshoot: float, settling_time: floa
 
 
 def step_settling_time(wn: float, zeta: float, band: float = 0.02) -> float:
-    r"""Exact settling time of the unit step response of :math:`\ddot y + 2\zeta\omega_n\dot y + \omega_n^2 y = \omega_n^2`.
+    r"""Exact settling time of the unit step response of
+    :math:`\ddot y + 2\zeta\omega_n\dot y + \omega_n^2 y = \omega_n^2`.
 
     The last instant :math:`|1 - y(t)| > \text{band}`, found on the closed-form response (no
     envelope approximation). Scales as :math:`1/\omega_n`.
     """
     wn, zeta = _positive("wn", wn), _positive("zeta", zeta)
-    from labsupport.metrics import settling_time, second_order_step
-
     t = np.linspace(0.0, 12.0 / (zeta * wn) + 10.0 / wn, 200_001)
-    return settling_time(t, second_order_step(t, wn, zeta), final=1.0, initial=0.0, band=band)
+    return metrics.settling_time(t, metrics.second_order_step(t, wn, zeta), final=1.0, initial=0.0, band=band)
 
 
 def exact_settling_frequency(zeta: float, settling_time: float, band: float = 0.02) -> float:

@@ -11,24 +11,19 @@ from the joint to the centre of mass, :math:`b` viscous friction and :math:`g` g
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import resources
-from typing import Callable, NamedTuple
 
+import mujoco
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from labsupport import validate
+from labsupport.sim import Log
+
 #: The lab's (textbook) parameters.
 LAB_M, LAB_m, LAB_r, LAB_b, LAB_g = 0.5, 1.0, 0.1, 0.1, 9.81
-
-
-class JointLog(NamedTuple):
-    """Sampled response of the single joint: time, angle, speed and applied torque."""
-
-    t: np.ndarray
-    theta: np.ndarray
-    theta_dot: np.ndarray
-    tau: np.ndarray
 
 
 class _BadTorque(Exception):
@@ -54,16 +49,11 @@ class SingleJoint:
     g: float = 0.0
 
     def __post_init__(self):
-        for name in ("M", "m", "r", "b", "g"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, float, np.floating, np.integer)) or not np.isfinite(value):
-                raise ValueError(f"{name} must be a finite number, got {value!r}")
-        if self.M <= 0:
-            raise ValueError(f"M (inertia about the joint) must be positive, got {self.M!r}")
-        if self.m < 0:
-            raise ValueError(f"m (link mass) must be non-negative, got {self.m!r}")
-        if self.b < 0:
-            raise ValueError(f"b (viscous friction) must be non-negative, got {self.b!r}")
+        validate.number("M (inertia about the joint)", self.M, positive=True)
+        validate.number("m (link mass)", self.m, nonnegative=True)
+        validate.number("r (joint to centre of mass)", self.r)
+        validate.number("b (viscous friction)", self.b, nonnegative=True)
+        validate.number("g (gravity)", self.g)
 
     @property
     def max_gravity_torque(self) -> float:
@@ -78,9 +68,15 @@ class SingleJoint:
         r"""Forward dynamics :math:`\ddot\theta = (\tau - h(\theta,\dot\theta))/M`."""
         return (tau - self.h(theta, theta_dot)) / self.M
 
-    def simulate(self, torque: Callable[[float, np.ndarray], float], duration: float,
-                 state0=(0.0, 0.0), dt: float = 1e-3, rtol: float = 1e-6,
-                 atol: float = 1e-8) -> JointLog:
+    def simulate(
+        self,
+        torque: Callable[[float, np.ndarray], float],
+        duration: float,
+        state0=(0.0, 0.0),
+        dt: float = 1e-3,
+        rtol: float = 1e-6,
+        atol: float = 1e-8,
+    ) -> Log:
         r"""Integrate :math:`\dot x = (\dot\theta, \ddot\theta)` under ``torque(t, state)`` with RK45.
 
         Args:
@@ -91,19 +87,15 @@ class SingleJoint:
             dt: spacing of the returned samples [s] (the solver picks its own steps).
 
         Returns:
-            A :class:`JointLog` sampled at ``0, dt, 2dt, … < duration``, with the torque the
-            controller returns at each sample.
+            The :class:`labsupport.sim.Log` of the run, sampled at ``0, dt, 2dt, … < duration``:
+            ``q`` and ``qdot`` of shape ``(N, 1)``, with the torque the controller returns at
+            each sample in ``tau`` (and ``ctrl``); no site, no reference.
         """
-        state0 = np.asarray(state0, dtype=float)
-        if state0.shape != (2,):
-            raise ValueError(f"state0 must be (theta, theta_dot), shape (2,); got shape {state0.shape}")
-        if not np.all(np.isfinite(state0)):
-            raise ValueError(f"state0 must be finite, got {state0}")
-        duration, dt = float(duration), float(dt)
-        if not (np.isfinite(duration) and duration > 0):
-            raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
-        if not (np.isfinite(dt) and 0 < dt <= duration):
-            raise ValueError(f"dt must be in (0, duration], got {dt!r}")
+        state0 = validate.vector("state0 (theta, theta_dot)", state0, (2,))
+        duration = validate.number("duration", duration, positive=True)
+        dt = validate.number("dt", dt, positive=True)
+        if dt > duration:
+            raise ValueError(f"dt must be at most the duration ({duration} s), got {dt!r}")
 
         def checked_torque(t, x):
             tau = torque(t, x)
@@ -122,19 +114,30 @@ class SingleJoint:
 
         t_eval = np.arange(0.0, duration, dt)
         try:
-            sol = solve_ivp(rhs, (0.0, duration), state0, t_eval=t_eval, method="RK45",
-                            rtol=rtol, atol=atol)
+            sol = solve_ivp(rhs, (0.0, duration), state0, t_eval=t_eval, method="RK45", rtol=rtol, atol=atol)
         except _BadTorque as err:
             raise ValueError(str(err)) from None
         if not sol.success:
             raise RuntimeError(f"the integration stopped early: {sol.message}")
-        tau = np.array([checked_torque(t, x) for t, x in zip(sol.t, sol.y.T)]) if len(sol.t) else np.zeros(0)
-        return JointLog(sol.t, sol.y[0], sol.y[1], tau)
+        tau = np.array([[checked_torque(t, x)] for t, x in zip(sol.t, sol.y.T, strict=True)]).reshape(-1, 1)
+        n = len(sol.t)
+        return Log(
+            t=sol.t,
+            q=sol.y[0].reshape(n, 1),
+            qdot=sol.y[1].reshape(n, 1),
+            tau=tau,
+            ctrl=tau.copy(),
+            ee=np.empty((n, 0)),
+            ee_rot=np.empty((n, 0, 0)),
+            ref=np.empty((n, 0)),
+            err=np.empty((n, 0)),
+        )
 
 
 # ---------------------------------------------------------------------------------------
 # MuJoCo models shipped in labsupport.models
 # ---------------------------------------------------------------------------------------
+
 
 def model_path(name: str):
     """Path of a shipped MJCF file, e.g. ``model_path("planar_2r")`` → ``.../planar_2r.xml``.
@@ -151,8 +154,6 @@ def model_path(name: str):
 
 def load_model(name: str):
     """Load a shipped model: returns ``(model, data)`` with ``mj_forward`` already run."""
-    import mujoco
-
     with resources.as_file(model_path(name)) as path:
         model = mujoco.MjModel.from_xml_path(str(path))
     data = mujoco.MjData(model)

@@ -6,9 +6,13 @@ Scalars in, scalars out; arrays of times in, arrays out (vectorised with NumPy).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
+
+from labsupport import validate
 
 
 class Reference(NamedTuple):
@@ -46,9 +50,9 @@ def circle_basis(normal) -> tuple[np.ndarray, np.ndarray]:
     :math:`u = n \times r / \lVert n \times r\rVert` with :math:`r = e_z` (or :math:`e_x` when
     :math:`n` is nearly vertical) and :math:`v = n \times u`, as in the lab.
     """
-    n = np.asarray(normal, dtype=float)
-    if n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) == 0:
-        raise ValueError(f"normal must be a finite, non-zero 3-vector, got {normal!r}")
+    n = validate.vector("normal", normal, (3,))
+    if np.linalg.norm(n) == 0:
+        raise ValueError(f"normal must be a non-zero 3-vector, got {normal!r}")
     n = n / np.linalg.norm(n)
     ref = np.array([0.0, 0.0, 1.0]) if abs(n[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
     u = np.cross(n, ref)
@@ -87,3 +91,91 @@ def circle_3d(t, center, radius: float, normal, frequency: float) -> Reference:
     vel = radius * w * (-s * u + c * v)
     acc = -radius * w**2 * (c * u + s * v)
     return Reference(pos, vel, acc)
+
+
+@dataclass(frozen=True)
+class SampledReference:
+    r"""A reference sampled once on a control grid :math:`t_k = k\,\Delta t`, read by index.
+
+    A controller that runs every :math:`\Delta t` reads row :math:`k` of three arrays instead
+    of evaluating the reference each step (:func:`sample` builds it). ``at(t)`` returns the
+    rows of the grid point nearest ``t`` (views, no copy); calling the object on an array of
+    grid times returns a :class:`Reference` of arrays, so it also serves as the ``reference``
+    of :func:`labsupport.sim.simulate`.
+
+    Attributes:
+        dt: grid spacing [s].
+        pos, vel, acc: ``(N,)`` or ``(N, d)`` samples; row ``k`` belongs to :math:`t_k + \text{offset}`.
+        offset: the reference was evaluated at :math:`t_k + \text{offset}` [s].
+    """
+
+    dt: float
+    pos: np.ndarray
+    vel: np.ndarray
+    acc: np.ndarray
+    offset: float = 0.0
+
+    def index(self, t) -> int:
+        """Index of the grid point nearest ``t``; ``ValueError`` past the sampled span."""
+        k = int(t / self.dt + 0.5)
+        if not 0 <= k < len(self.pos):
+            raise ValueError(
+                f"t = {t!r} s is outside the sampled reference "
+                f"[0, {(len(self.pos) - 1) * self.dt:.6g}] s; sample a longer duration"
+            )
+        return k
+
+    def at(self, t) -> Reference:
+        """``Reference(pos, vel, acc)`` at the grid point nearest ``t``."""
+        k = self.index(t)
+        return Reference(self.pos[k], self.vel[k], self.acc[k])
+
+    def __call__(self, t) -> Reference:
+        """The samples at the grid times ``t`` (a float or an array of them)."""
+        k = np.rint(np.asarray(t, dtype=float) / self.dt).astype(int)
+        if np.any((k < 0) | (k >= len(self.pos))):
+            raise ValueError(f"some times are outside the sampled reference [0, {(len(self.pos) - 1) * self.dt:.6g}] s")
+        return Reference(self.pos[k], self.vel[k], self.acc[k])
+
+
+def sample(
+    reference: Callable[[np.ndarray], Reference], dt: float, duration: float, offset: float = 0.0
+) -> SampledReference:
+    r"""Sample ``reference(t)`` on :math:`t_k = k\,\Delta t + \text{offset}`, :math:`0 \le k\,\Delta t \le`
+    ``duration`` plus two steps (the lab's loops take one step more than ``duration / dt``).
+
+    ``reference`` is called once on the array of times (all references of this module are
+    vectorised); one that only takes a float is called once per time instead.
+    """
+    dt = validate.number("dt", dt, positive=True)
+    duration = validate.number("duration", duration, nonnegative=True)
+    offset = validate.number("offset", offset)
+    t = np.arange(int(round(duration / dt)) + 2) * dt + offset
+    try:
+        ref = Reference(*(np.asarray(a, dtype=float) for a in reference(t)))
+        if ref.pos.shape[:1] != t.shape:
+            raise ValueError
+    except (ValueError, TypeError):
+        rows = [Reference(*(np.asarray(a, dtype=float) for a in reference(float(tk)))) for tk in t]
+        ref = Reference(*(np.array(parts) for parts in zip(*rows, strict=True)))
+    return SampledReference(dt, *(np.ascontiguousarray(a) for a in ref), offset)
+
+
+def within_reach(reference: SampledReference, anchor, radius: float) -> SampledReference:
+    r"""The sampled ``reference`` with every point farther than ``radius`` from ``anchor`` pulled
+    back onto that sphere,
+
+    .. math:: x \leftarrow a + r\,\frac{x - a}{\lVert x - a\rVert}\quad\text{where}\quad \lVert x - a\rVert > r,
+
+    and its velocity and acceleration recomputed by finite differences on the grid, so the
+    feedforward matches the path that is actually tracked. Points inside the sphere keep their
+    position.
+    """
+    anchor = validate.vector("anchor", anchor, (np.shape(reference.pos)[-1],))
+    radius = validate.number("radius", radius, positive=True)
+    offset = reference.pos - anchor
+    dist = np.linalg.norm(offset, axis=-1, keepdims=True)
+    pos = np.where(dist > radius, anchor + offset * (radius / np.maximum(dist, 1e-12)), reference.pos)
+    vel = np.gradient(pos, reference.dt, axis=0)
+    acc = np.gradient(vel, reference.dt, axis=0)
+    return SampledReference(reference.dt, pos, vel, acc, reference.offset)

@@ -1,15 +1,15 @@
-"""The simulation loop: logging conventions, torque limits, sampled references, and
-divergence detection."""
+"""The simulation loop: logging conventions, torque limits, keyframes, actuation mappings,
+split and lab stepping, and divergence detection."""
 
 import mujoco
 import numpy as np
 import pytest
 
 import labsupport  # noqa: F401
-from labsupport import sim
+from labsupport import sim, validate
 from labsupport.dynamics import mass_matrix
-from labsupport.plants import load_model
-from labsupport.trajectories import Reference, circle_2d
+from labsupport.plants import load_model, model_path
+from labsupport.trajectories import Reference, circle_2d, sample
 
 
 @pytest.fixture()
@@ -70,25 +70,6 @@ def test_mujoco_data_after_an_rk4_step_belongs_to_the_new_state(arm):
     np.testing.assert_allclose(data.qfrc_bias, fresh.qfrc_bias, atol=1e-7)
 
 
-def test_sampled_reference_matches_direct_calls():
-    ref = lambda t: circle_2d(t, (0.5, 0.2), 0.15, 6.0)  # noqa: E731
-    sampled = sim.SampledReference(ref, 0.002, chunk=64)
-    for t in (0.0, 0.002 * 63, 0.002 * 64, 0.002 * 1000, 0.0031):   # on the grid, chunk edges, off the grid
-        r = ref(t)
-        np.testing.assert_allclose(sampled.at(t), [*r.pos, *r.vel, *r.acc], atol=1e-12)
-    shifted = sim.SampledReference(ref, 0.002, offset=0.001)
-    np.testing.assert_allclose(shifted.at(0.004)[:2], ref(0.005).pos, atol=1e-12)
-
-
-def test_sampled_reference_accepts_scalar_only_functions():
-    def scalar_only(t):
-        if np.ndim(t):
-            raise TypeError("scalars only")
-        return Reference(np.sin(t), np.cos(t), -np.sin(t))
-    sampled = sim.SampledReference(scalar_only, 0.01, chunk=8)
-    np.testing.assert_allclose(sampled.at(0.1), [np.sin(0.1), np.cos(0.1), -np.sin(0.1)], atol=1e-12)
-
-
 def test_divergence_is_detected_and_names_time_and_state(arm):
     """Positive velocity feedback makes the arm run away; MuJoCo flags it (and resets the
     state); the loop stops with the time and the last good state."""
@@ -98,7 +79,7 @@ def test_divergence_is_detected_and_names_time_and_state(arm):
         sim.simulate(model, data, lambda m, d: gain * d.qvel + np.array([1.0, 0.0]), 5.0, q0=[0.1, 1.0])
     exc = err.value
     assert 0 < exc.t < 5.0
-    assert np.all(np.isfinite(exc.qpos)) and np.abs(exc.qvel).max() > 1e3   # the runaway is visible
+    assert np.all(np.isfinite(exc.qpos)) and np.abs(exc.qvel).max() > 1e3  # the runaway is visible
     assert "q = " in str(exc) and "qdot = " in str(exc)
 
 
@@ -120,10 +101,155 @@ def test_bad_inputs_raise_value_errors(arm):
         sim.simulate(model, data, constant([0.0, 0.0]), 0.01, site="hand")
 
 
-def test_from_state_torque_adapts_single_joint_laws():
-    model, data = load_model("single_joint")
-    seen = []
-    ctrl = sim.from_state_torque(lambda t, x: seen.append((t, *x)) or 0.5)
-    data.qpos[0], data.qvel[0], data.time = 0.2, -1.0, 0.3
-    np.testing.assert_array_equal(ctrl(model, data), [0.5])
-    assert seen == [(0.3, 0.2, -1.0)]
+def arm_with_keyframe():
+    xml = (
+        model_path("planar_2r")
+        .read_text()
+        .replace("</mujoco>", '<keyframe><key name="bent" qpos="0.3 1.2" qvel="0 0.5"/></keyframe></mujoco>')
+    )
+    model = mujoco.MjModel.from_xml_string(xml)
+    return model, mujoco.MjData(model)
+
+
+def test_keyframe_sets_the_start_and_q0_overrides_it():
+    model, data = arm_with_keyframe()
+    log = sim.simulate(model, data, constant([0.0, 0.0]), 0.01, keyframe="bent")
+    np.testing.assert_array_equal(log.q[0], [0.3, 1.2])
+    np.testing.assert_array_equal(log.qdot[0], [0.0, 0.5])
+    log = sim.simulate(model, data, constant([0.0, 0.0]), 0.01, keyframe="bent", q0=[0.1, 0.2])
+    np.testing.assert_array_equal(log.q[0], [0.1, 0.2])
+    np.testing.assert_array_equal(log.qdot[0], [0.0, 0.5])
+    with pytest.raises(ValueError, match="keyframe 'home' is not in the model; its keyframes are \\['bent'\\]"):
+        sim.simulate(model, data, constant([0.0, 0.0]), 0.01, keyframe="home")
+
+
+def test_actuation_maps_torque_to_ctrl(arm):
+    """The log keeps the torque asked for and the ctrl written; the plant moves under ctrl."""
+    model, data = arm
+    doubled = sim.simulate(
+        model, data, constant([0.3, -0.1]), 0.1, q0=[0.1, 0.5], actuation=lambda m, d, tau: 2.0 * tau
+    )
+    direct = sim.simulate(model, data, constant([0.6, -0.2]), 0.1, q0=[0.1, 0.5])
+    np.testing.assert_array_equal(doubled.tau, np.tile([0.3, -0.1], (50, 1)))
+    np.testing.assert_array_equal(doubled.ctrl, np.tile([0.6, -0.2], (50, 1)))
+    np.testing.assert_allclose(doubled.q, direct.q, atol=1e-15)
+    np.testing.assert_array_equal(direct.ctrl, direct.tau)
+
+
+def test_split_step_shows_the_controller_the_current_kinematics(arm):
+    """With mj_step1 before the controller, site_xpos belongs to the current qpos exactly; with
+    the default Euler stepping it belongs to the start of the previous step."""
+    model, data = arm
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    fresh = mujoco.MjData(model)
+    gaps = []
+
+    def controller(m, d):
+        fresh.qpos[:] = d.qpos
+        mujoco.mj_kinematics(m, fresh)
+        gaps.append(np.abs(d.site_xpos[-1] - fresh.site_xpos[-1]).max())
+        return np.array([0.5, -0.5])
+
+    log = sim.simulate(
+        model, data, controller, 0.2, q0=[0.2, 0.4], qdot0=[1.0, 1.0], split_step=True, site="end_effector"
+    )
+    assert max(gaps) < 1e-15
+    np.testing.assert_allclose(log.ee, sim.site_positions(model, log.q, "end_effector"), atol=1e-15)
+    np.testing.assert_allclose(log.ee_rot[5] @ log.ee_rot[5].T, np.eye(3), atol=1e-12)
+    gaps.clear()
+    sim.simulate(model, data, controller, 0.2, q0=[0.2, 0.4], qdot0=[1.0, 1.0])
+    assert max(gaps) > 1e-4
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    with pytest.raises(ValueError, match="RK4"):
+        sim.simulate(model, data, controller, 0.2, split_step=True)
+
+
+def test_lab_timing_counts_steps_as_the_lab_and_skips_the_first_forward(arm):
+    model, data = arm
+    assert sim.step_count(8.0, 0.002, lab_timing=True) == 4001
+    assert sim.step_count(8.0, 0.002) == 4000
+    first = []
+
+    def controller(m, d):
+        if not first:
+            first.append(d.site_xpos[-1].copy())
+        return np.zeros(2)
+
+    log = sim.simulate(model, data, controller, 0.1, q0=[0.3, 0.3], site="end_effector", lab_timing=True)
+    np.testing.assert_array_equal(first[0], 0.0)  # derived data still zeroed by the reset
+    assert len(log.t) == sim.step_count(0.1, model.opt.timestep, lab_timing=True)
+    np.testing.assert_array_equal(log.ee[0], 0.0)
+    with pytest.raises(ValueError, match="exclude"):
+        sim.simulate(model, data, controller, 0.1, lab_timing=True, split_step=True)
+
+
+def test_log_has_one_shape_for_every_run(arm):
+    model, data = arm
+    log = sim.simulate(
+        model,
+        data,
+        constant([0.0, 0.0]),
+        0.02,
+        site="end_effector",
+        reference=lambda t: circle_2d(t, (0.5, 0.2), 0.15, 6.0),
+    )
+    assert (log.t.shape, log.q.shape, log.qdot.shape, log.tau.shape, log.ctrl.shape) == (
+        (10,),
+        (10, 2),
+        (10, 2),
+        (10, 2),
+        (10, 2),
+    )
+    assert (log.ee.shape, log.ee_rot.shape, log.ref.shape, log.err.shape) == ((10, 3), (10, 3, 3), (10, 2), (10, 2))
+    bare = sim.simulate(model, data, constant([0.0, 0.0]), 0.02)
+    assert (bare.ee.shape, bare.ee_rot.shape, bare.ref.shape, bare.err.shape) == ((10, 0), (10, 0, 0), (10, 0), (10, 0))
+
+
+def test_controller_returning_none_gets_a_clear_error(arm):
+    model, data = arm
+    with pytest.raises(ValueError, match="returned None"):
+        sim.simulate(model, data, lambda m, d: None, 0.01)
+
+
+def test_sampled_reference_reads_the_samples_of_the_grid():
+    ref = lambda t: circle_2d(t, (0.5, 0.2), 0.15, 6.0)  # noqa: E731
+    sampled = sample(ref, 0.002, 1.0)
+    for t in (0.0, 0.002 * 63, 0.5, 1.0, 1.002):  # the lab's loops take one step more
+        r = ref(t)
+        np.testing.assert_allclose(np.concatenate(sampled.at(t)), [*r.pos, *r.vel, *r.acc], atol=1e-12)
+    t = np.arange(10) * 0.002
+    np.testing.assert_allclose(sampled(t).pos, ref(t).pos, atol=1e-15)
+    shifted = sample(ref, 0.002, 1.0, offset=0.001)
+    np.testing.assert_allclose(shifted.at(0.004).pos, ref(0.005).pos, atol=1e-12)
+    with pytest.raises(ValueError, match="outside the sampled reference"):
+        sampled.at(2.0)
+
+
+def test_sample_accepts_scalar_only_functions():
+    def scalar_only(t):
+        if np.ndim(t):
+            raise TypeError("scalars only")
+        return Reference(np.sin(t), np.cos(t), -np.sin(t))
+
+    sampled = sample(scalar_only, 0.01, 0.5)
+    assert sampled.pos.shape == (52,)
+    np.testing.assert_allclose(sampled.at(0.1), [np.sin(0.1), np.cos(0.1), -np.sin(0.1)], atol=1e-12)
+
+
+def test_validate_names_the_argument_and_what_was_wrong():
+    np.testing.assert_array_equal(validate.vector("q", [1, 2], (2,)), [1.0, 2.0])
+    with pytest.raises(ValueError, match=r"q must have shape \(2,\), got shape \(3,\)"):
+        validate.vector("q", [1, 2, 3], (2,))
+    with pytest.raises(ValueError, match="q must be finite"):
+        validate.vector("q", [1, np.nan], 2)
+    with pytest.raises(ValueError, match="q must be numbers of shape"):
+        validate.vector("q", ["a", "b"], 2)
+    assert validate.number("Kp", np.float32(2.5), positive=True) == 2.5
+    with pytest.raises(ValueError, match="Kp must be positive, got 0"):
+        validate.number("Kp", 0, positive=True)
+    with pytest.raises(ValueError, match="Kd must be non-negative"):
+        validate.number("Kd", -1.0, nonnegative=True)
+    with pytest.raises(ValueError, match="single real number"):
+        validate.number("dt", [0.1, 0.2])
+    with pytest.raises(ValueError, match="boolean"):
+        validate.number("dt", True)

@@ -1,0 +1,61 @@
+"""Input checks, written once: every public function of the package validates its arguments
+with these two, so a bad argument gets a message that names it, says what was expected and
+what came instead, rather than a traceback from deep inside NumPy or MuJoCo.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def vector(name: str, value, shape) -> np.ndarray:
+    """``value`` as a float array of exactly ``shape``, with finite entries.
+
+    Args:
+        name: the argument's name, as the caller knows it (used in the message).
+        value: anything ``np.asarray`` turns into numbers.
+        shape: the expected shape, e.g. ``(2,)`` or ``(6, 7)``; an ``int`` means ``(n,)``.
+
+    Returns:
+        A float64 array (the input itself when it already is one of the right shape).
+
+    Raises:
+        ValueError: the value is not numeric, has another shape, or holds NaN or inf.
+    """
+    shape = (int(shape),) if np.ndim(shape) == 0 else tuple(int(n) for n in shape)
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be numbers of shape {shape}, got {value!r}") from None
+    if array.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got shape {array.shape}: {_short(value)}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} must be finite, got {_short(array)}")
+    return array
+
+
+def number(name: str, value, *, positive: bool = False, nonnegative: bool = False) -> float:
+    """``value`` as a finite float, optionally required to be > 0 or >= 0.
+
+    Raises:
+        ValueError: the value is not a real number, is NaN or inf, or breaks the sign asked.
+    """
+    if isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be a number, got the boolean {value!r}")
+    try:
+        result = float(np.asarray(value, dtype=float).reshape(()))
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a single real number, got {_short(value)}") from None
+    if not np.isfinite(result):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    if positive and not result > 0:
+        raise ValueError(f"{name} must be positive, got {value!r}")
+    if nonnegative and not result >= 0:
+        raise ValueError(f"{name} must be non-negative, got {value!r}")
+    return result
+
+
+def _short(value) -> str:
+    with np.printoptions(precision=4, threshold=12, edgeitems=3):
+        text = repr(value) if not isinstance(value, np.ndarray) else np.array2string(value)
+    return text if len(text) <= 200 else text[:197] + "..."
