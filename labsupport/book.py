@@ -9,9 +9,7 @@ executed outputs, so page, code and results cannot drift apart.
 
 from __future__ import annotations
 
-import ast
 import inspect
-import textwrap
 from collections.abc import Callable
 from typing import Any
 
@@ -34,36 +32,18 @@ def glue(name: str, value: Any, display: bool = False) -> None:
     _glue(name, value, display=display)
 
 
-def law_source(fn: Callable, docstring: bool = False) -> str:
-    """The source code of ``fn`` as written in its module, without its docstring unless
-    ``docstring=True`` (the page shows the equation just above it)."""
+def show_law(fn: Callable) -> None:
+    """Display the code of a control law, its source exactly as ``inspect.getsource`` gives it
+    (docstring and equation included), as a highlighted Python block in the notebook and on the
+    built page.
+
+    The block is Markdown holding a fenced ``python`` code block: Jupyter and Colab highlight
+    it, and MyST-NB renders it as the book's ordinary highlighted code block.
+    """
     try:
-        source = textwrap.dedent(inspect.getsource(fn))
+        source = inspect.getsource(fn).rstrip() + "\n"
     except (TypeError, OSError):
         raise ValueError(f"show_law needs a function defined in a source file, got {fn!r}") from None
-    if docstring:
-        return source.rstrip() + "\n"
-    node = ast.parse(source).body[0]
-    body = getattr(node, "body", [])
-    lines = source.splitlines()
-    if (
-        body
-        and isinstance(body[0], ast.Expr)
-        and isinstance(getattr(body[0], "value", None), ast.Constant)
-        and isinstance(body[0].value.value, str)
-    ):
-        del lines[body[0].lineno - 1 : body[0].end_lineno]
-    return "\n".join(lines).rstrip() + "\n"
-
-
-def show_law(fn: Callable, docstring: bool = False) -> None:
-    """Display the code of a control law (its source, taken from the function itself) as a
-    highlighted Python block in the notebook and on the built page.
-
-    The block is Markdown with a fenced ``python`` code block: Jupyter and Colab highlight it,
-    and MyST-NB renders it as the book's ordinary highlighted code block.
-    """
-    source = law_source(fn, docstring)
     fence = "```"
     while fence in source:
         fence += "`"
