@@ -1,0 +1,521 @@
+"""From Canvas to Canvas: the "Download Submissions" zip and the gradebook export, round trip.
+
+The fixtures in tests/fixtures/canvas/ are synthetic but named and laid out as Canvas writes them
+(see the docstring of labsupport.instructor.canvas for the sources):
+
+* ``gradebook_export.csv``: an export with a custom column, a Manual Posting row, the Points
+  Possible row (the Problem 1 column is worth 20 points, its checks 10), read-only totals,
+  a grade already there (Lee), an excused cell (Patel) and Canvas's Test Student;
+* ``submissions.zip``: built from :data:`ZIP_MEMBERS` below (a test checks that they agree);
+  each notebook carries the scores a fake grader returns for it, so the round trip is checked
+  without running the real grader; :func:`test_end_to_end_with_the_real_batch_grader` runs it;
+* ``expected_import.csv``: what must come out.
+"""
+
+import csv
+import io
+import json
+import os
+import shutil
+import stat
+import zipfile
+from pathlib import Path
+
+import nbformat
+import pytest
+
+from labsupport.instructor import canvas
+
+ROOT = Path(__file__).resolve().parents[1]
+FIXTURES = ROOT / "tests" / "fixtures" / "canvas"
+SPEC = ROOT / "tests" / "autograder" / "problem1.json"
+EXPORT = FIXTURES / "gradebook_export.csv"
+COLUMN = "Problem 1: Reaching (4101)"
+
+
+def fake_notebook(status: str = "graded", **scores: float) -> bytes:
+    """A small notebook whose metadata says what the fake grader returns for it."""
+    nb = nbformat.v4.new_notebook()
+    nb.cells = [nbformat.v4.new_code_cell("# the student's work", id="student-work")]
+    nb.metadata["fake_grade"] = {"status": status, "scores": scores}
+    return nbformat.writes(nb).encode()
+
+
+#: The committed zip's entries: Canvas names, the cases the round trip must handle.
+ZIP_MEMBERS = {
+    # on time, full marks
+    "smithbob_1234_50001_problem1_reaching.ipynb": fake_notebook(p1_ik=3, p1_pd=2, p1_ct=3, p1_reach=2),
+    # late
+    "garcíaana_LATE_1235_50002_problem1_reaching.ipynb": fake_notebook(p1_ik=3, p1_pd=2, p1_ct=1.5, p1_reach=1),
+    # a resubmission, plus a file that is not a notebook
+    "oharasean_1236_50003_problem1_reaching-1.ipynb": fake_notebook(p1_ik=1.5, p1_pd=0, p1_ct=1.5, p1_reach=0),
+    "oharasean_1236_50004_notes.pdf": b"%PDF-1.4 not a notebook",
+    # both Problems in one submission, the third upload of problem1_reaching.ipynb; Canvas has 10 already
+    "leekim_1238_50005_problem2_tracking.ipynb": fake_notebook(p1_ik=0, p1_pd=0, p1_ct=0, p1_reach=0),
+    "leekim_1238_50006_problem1_reaching-2.ipynb": fake_notebook(p1_ik=3, p1_pd=2, p1_ct=3, p1_reach=0),
+    # the grader ran out of time: no score may be written
+    "khanomar_1239_50007_Copy_of_problem1_reaching.ipynb": fake_notebook("timed out"),
+    # excused in Canvas
+    "patelriya_1240_50008_problem1_reaching.ipynb": fake_notebook(p1_ik=3, p1_pd=2, p1_ct=3, p1_reach=2),
+    # a group submission: Canvas names the file after the group, with one member's id
+    "theroboticists_1241_50009_problem1_reaching.ipynb": fake_notebook(p1_ik=2, p1_pd=2, p1_ct=2, p1_reach=2),
+    # a student no longer in the gradebook, and a file Canvas did not name
+    "doejane_4321_50010_problem1_reaching.ipynb": fake_notebook(p1_ik=3, p1_pd=2, p1_ct=3, p1_reach=2),
+    "problem1_reaching.ipynb": fake_notebook(p1_ik=3, p1_pd=2, p1_ct=3, p1_reach=2),
+}
+
+#: The Problem 1 cells expected in the import (scaled from /10 to /20); the others keep their export.
+EXPECTED_CELLS = {1234: "20", 1235: "15", 1236: "6", 1238: "16", 1241: "16"}
+
+
+def build_zip(path: Path, members: dict[str, bytes]) -> Path:
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, data in members.items():
+            zf.writestr(zipfile.ZipInfo(name, date_time=(2025, 3, 14, 9, 26, 0)), data, zipfile.ZIP_DEFLATED)
+    return path
+
+
+def fake_grade(calls: list):
+    """A grading function with run_batch's shape that returns what each notebook's metadata says."""
+
+    def grade(folder: Path, spec_path: Path, out: Path) -> list[dict]:
+        calls.append(
+            {
+                "folder": folder,
+                "mode": stat.S_IMODE(os.stat(folder).st_mode),
+                "files": sorted(p.name for p in folder.iterdir()),
+                "out": out,
+            }
+        )
+        rows = []
+        for p in sorted(folder.glob("*.ipynb")):
+            fake = json.loads(p.read_text())["metadata"]["fake_grade"]
+            rows.append(
+                {
+                    "file": p.name,
+                    "status": fake["status"],
+                    "scores": fake["scores"],
+                    "messages": {n: f"{n} message for {p.stem}" for n in fake["scores"]},
+                    "notes": [] if fake["status"] == "graded" else ["the check ran out of time"],
+                    "seconds": 0.0,
+                }
+            )
+        return rows
+
+    return grade
+
+
+@pytest.fixture
+def round_trip(tmp_path):
+    calls = []
+    result = canvas.grade_canvas(FIXTURES / "submissions.zip", EXPORT, SPEC, tmp_path / "out", grade=fake_grade(calls))
+    return result, tmp_path / "out", calls
+
+
+# --- file names -----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "entry, name, user, late, attachment, original, resubmission, kind",
+    [
+        (
+            "smithbob_1234_50001_problem1_reaching.ipynb",
+            "smithbob",
+            1234,
+            False,
+            50001,
+            "problem1_reaching.ipynb",
+            0,
+            "upload",
+        ),
+        (
+            "smithbob_LATE_1234_50002_problem1_reaching-1.ipynb",
+            "smithbob",
+            1234,
+            True,
+            50002,
+            "problem1_reaching-1.ipynb",
+            1,
+            "upload",
+        ),
+        (
+            "garcíaana_1235_7_problem1_reaching-12.ipynb",
+            "garcíaana",
+            1235,
+            False,
+            7,
+            "problem1_reaching-12.ipynb",
+            12,
+            "upload",
+        ),
+        # names keep digits and underscores; file names keep spaces, digits and underscores
+        (
+            "student_2nd_88_99_2024_10 final (1).ipynb",
+            "student_2nd",
+            88,
+            False,
+            99,
+            "2024_10 final (1).ipynb",
+            0,
+            "upload",
+        ),
+        ("my-notebook_5_6_my-notebook.ipynb", "my-notebook", 5, False, 6, "my-notebook.ipynb", 0, "upload"),
+        ("smithbob_1234_5_archive-3.tar.gz", "smithbob", 1234, False, 5, "archive-3.tar.gz", 3, "upload"),
+        # anonymous grading: no name, an anonymous id instead of the user id
+        (
+            "LATE_anon_q7Kx2_50011_problem1_reaching.ipynb",
+            "",
+            None,
+            True,
+            50011,
+            "problem1_reaching.ipynb",
+            0,
+            "upload",
+        ),
+        # text entry and URL submissions
+        ("smithbob_1234_text.html", "smithbob", 1234, False, None, "smithbob_1234_text.html", 0, "text"),
+        ("smithbob_LATE_1234_link.html", "smithbob", 1234, True, None, "smithbob_LATE_1234_link.html", 0, "link"),
+        # inside a folder (a zip made again by hand)
+        ("submissions/smithbob_1234_50001_p.ipynb", "smithbob", 1234, False, 50001, "p.ipynb", 0, "upload"),
+    ],
+)
+def test_parse_submission_name(entry, name, user, late, attachment, original, resubmission, kind):
+    f = canvas.parse_submission_name(entry)
+    assert (f.name, f.user_id, f.late, f.attachment_id, f.original, f.resubmission, f.kind) == (
+        name,
+        user,
+        late,
+        attachment,
+        original,
+        resubmission,
+        kind,
+    )
+    assert f.entry == entry
+
+
+@pytest.mark.parametrize(
+    "entry", ["problem1_reaching.ipynb", "notes.txt", "smithbob_problem1.ipynb", "__MACOSX/._smithbob", "1234.ipynb"]
+)
+def test_names_canvas_does_not_write_are_not_parsed(entry):
+    assert canvas.parse_submission_name(entry) is None
+
+
+def test_anonymous_and_resubmission_details():
+    f = canvas.parse_submission_name("LATE_anon_q7Kx2_50011_problem1_reaching-2.ipynb")
+    assert f.anonymous_id == "q7Kx2" and f.user_id is None
+    assert f.base_name == "problem1_reaching.ipynb" and f.resubmission == 2
+    assert f.prefix == "LATE_anon_q7Kx2_50011"
+    assert canvas.parse_submission_name("a_1_2_lab-v2.ipynb").base_name == "lab-v2.ipynb"
+
+
+def test_choose_notebook_prefers_the_problem_then_the_latest_upload():
+    files = [
+        canvas.parse_submission_name(n)
+        for n in (
+            "kim_1_10_problem2_tracking.ipynb",
+            "kim_1_11_problem1_reaching.ipynb",
+            "kim_1_13_problem1_reaching-2.ipynb",
+            "kim_1_12_problem1_reaching-1.ipynb",
+            "kim_1_14_report.pdf",
+        )
+    ]
+    assert canvas.choose_notebook(files, "problem1_reaching", "problem1").attachment_id == 13
+    # named after the Problem only, or not at all: still a notebook, never the PDF
+    assert canvas.choose_notebook(files[:1] + files[4:], "problem1_reaching", "problem1").attachment_id == 10
+    assert canvas.choose_notebook(files[4:], "problem1_reaching", "problem1") is None
+
+
+@pytest.mark.parametrize(
+    "value, text",
+    [(20, "20"), (15.0, "15"), (7.5, "7.5"), (6.666666, "6.67"), (0.0, "0"), (-0.001, "0"), (12.345, "12.35")],
+)
+def test_format_score(value, text):
+    assert canvas.format_score(value) == text
+
+
+def test_scaled_score():
+    assert canvas.scaled_score(7.5, 10, 20) == 15
+    assert canvas.scaled_score(7.5, 10, 10) == 7.5
+    assert canvas.scaled_score(7.5, 10, None) == 7.5
+    assert canvas.scaled_score(3, 10, 100) == pytest.approx(30)
+
+
+# --- fixtures ---------------------------------------------------------------------------------------
+
+
+def test_committed_zip_holds_exactly_the_manifest(tmp_path):
+    with zipfile.ZipFile(FIXTURES / "submissions.zip") as zf:
+        committed = {i.filename: zf.read(i) for i in zf.infolist()}
+    assert committed == ZIP_MEMBERS
+
+
+# --- the round trip -------------------------------------------------------------------------------
+
+
+def test_round_trip_matches_the_expected_import(round_trip):
+    result, out, calls = round_trip
+    assert (out / "gradebook_import.csv").read_bytes() == (FIXTURES / "expected_import.csv").read_bytes()
+    assert result.scores == EXPECTED_CELLS
+    assert result.column == COLUMN and result.points_possible == 20 and result.maximum == 10
+
+
+def test_round_trip_changes_only_the_problem_column(round_trip):
+    _, out, _ = round_trip
+    before = canvas.read_gradebook(EXPORT)
+    after = canvas.read_gradebook(out / "gradebook_import.csv")
+    col = before.header.index(COLUMN)
+    assert after.header == before.header and after.student_rows == before.student_rows
+    assert len(after.records) == len(before.records)
+    changed_rows = {before.student_rows[u] for u in EXPECTED_CELLS}
+    for r, (old, new) in enumerate(zip(before.records, after.records, strict=True)):
+        if r not in changed_rows:
+            assert new == old, f"record {r} changed"  # byte for byte: header, points row, other students
+            continue
+        old_fields, old_end = canvas.split_fields(old, ",")
+        new_fields, new_end = canvas.split_fields(new, ",")
+        assert old_end == new_end and len(old_fields) == len(new_fields)
+        assert [f for i, f in enumerate(new_fields) if i != col] == [f for i, f in enumerate(old_fields) if i != col]
+    for user, cell in EXPECTED_CELLS.items():
+        assert after.cell(user, col) == cell
+    # re-read independently with the csv module: the Points Possible row and the totals are untouched
+    rows = list(csv.reader(io.StringIO((out / "gradebook_import.csv").read_text(encoding="utf-8"))))
+    assert rows[2][0] == "    Points Possible" and rows[2][col] == "20.00"
+
+
+def test_students_without_a_score_keep_their_exported_cell_never_zero(round_trip):
+    result, out, _ = round_trip
+    after = canvas.read_gradebook(out / "gradebook_import.csv")
+    col = after.header.index(COLUMN)
+    assert after.cell(1237, col) == ""  # Nguyen: missing from the zip
+    assert after.cell(9999, col) == ""  # Canvas's Test Student
+    assert after.cell(1239, col) == ""  # Khan: the grader timed out
+    assert after.cell(1240, col) == "EX"  # Patel: excused in Canvas
+    assert any("Nguyen, Linh (ID 1237)" in m for m in result.missing)
+    assert any("Khan, Omar" in m and "timed out" in m for m in result.not_scored)
+    assert any("Patel, Riya" in m and "EX" in m for m in result.not_scored)
+
+
+def test_unmatched_files_are_listed_never_dropped(round_trip):
+    result, out, calls = round_trip
+    unmatched = "\n".join(result.unmatched)
+    assert "doejane_4321_50010_problem1_reaching.ipynb: no student with ID 4321" in unmatched
+    assert "problem1_reaching.ipynb: not named as Canvas names submissions" in unmatched
+    report = (out / "report.txt").read_text()
+    feedback_names = {p.name for p in result.feedback.values()}
+    for entry in ZIP_MEMBERS:  # every file of the zip is graded (it has feedback) or named in the report
+        f = canvas.parse_submission_name(entry)
+        assert entry in report or (f is not None and f"{f.prefix}_feedback.txt" in feedback_names), entry
+    # the grader saw exactly one notebook per known student, in a private folder it no longer has
+    assert calls[0]["mode"] == 0o700 and not calls[0]["folder"].exists()
+    assert calls[0]["files"] == [
+        "garcíaana_1235.ipynb",
+        "khanomar_1239.ipynb",
+        "leekim_1238.ipynb",
+        "oharasean_1236.ipynb",
+        "patelriya_1240.ipynb",
+        "smithbob_1234.ipynb",
+        "theroboticists_1241.ipynb",
+    ]
+    assert calls[0]["out"] == out / "batch"
+
+
+def test_report_lists_late_resubmissions_groups_and_scaling(round_trip):
+    result, out, _ = round_trip
+    report = (out / "report.txt").read_text()
+    assert result.late == ["García, Ana: garcíaana_LATE_1235_50002_problem1_reaching.ipynb"]
+    assert result.resubmissions == [
+        "O'Hara, Sean: problem1_reaching-1.ipynb (upload 2 of that name)",
+        "Lee, Kim: problem1_reaching-2.ipynb (upload 3 of that name)",
+    ]
+    assert any("leekim_1238_50005_problem2_tracking.ipynb" in n for n in result.not_graded)
+    assert any("oharasean_1236_50004_notes.pdf (not a notebook" in n for n in result.not_graded)
+    assert "Lee, Kim: replaces the grade 10.00 already in Canvas with 16" in result.notes
+    assert any("Wong, Mei" in n and "'theroboticists'" in n for n in result.notes)
+    assert "scaled by 20/10" in report and "Column: Problem 1: Reaching (4101) (points possible 20)" in report
+
+
+def test_feedback_files_carry_the_score_and_every_message_and_canvas_can_match_them(round_trip):
+    result, out, _ = round_trip
+    assert set(result.feedback) == {1234, 1235, 1236, 1238, 1239, 1240, 1241}
+    smith = result.feedback[1234]
+    assert smith.name == "smithbob_1234_50001_feedback.txt"
+    text = smith.read_text()
+    assert "Smith, Bob" in text and "Score: 20 / 20" in text and "(10 of the checks' 10 points, scaled)" in text
+    for check in ("p1_ik", "p1_pd", "p1_ct", "p1_reach"):
+        assert f"{check} message for smithbob_1234" in text
+    assert "Not scored: timed out" in result.feedback[1239].read_text()
+    # Canvas's Re-upload Submissions: the first two all-digit parts are the user and attachment ids
+    with zipfile.ZipFile(out / "feedback_upload.zip") as zf:
+        names = sorted(zf.namelist())
+    assert len(names) == 7
+    for name in names:
+        user_id, attachment_id = [p for p in name.split("_") if p.isdigit()][:2]
+        submitted = next(e for e in ZIP_MEMBERS if e.startswith(name.removesuffix("_feedback.txt") + "_"))
+        assert canvas.parse_submission_name(submitted).user_id == int(user_id)
+        assert canvas.parse_submission_name(submitted).attachment_id == int(attachment_id)
+
+
+def test_semicolons_bom_crlf_and_decimal_commas_survive(tmp_path):
+    text = EXPORT.read_text(encoding="utf-8")
+    rows = list(csv.reader(io.StringIO(text)))
+    rows[2] = [c.replace(".", ",") for c in rows[2]]  # a decimal-comma locale
+    buf = io.StringIO()
+    csv.writer(buf, delimiter=";", lineterminator="\r\n").writerows(rows)
+    export = tmp_path / "export.csv"
+    export.write_bytes(("\ufeff" + buf.getvalue()).encode("utf-8"))
+    result = canvas.grade_canvas(FIXTURES / "submissions.zip", export, SPEC, tmp_path / "out", grade=fake_grade([]))
+    assert result.points_possible == 20 and result.scores == EXPECTED_CELLS
+    out = (tmp_path / "out" / "gradebook_import.csv").read_bytes()
+    assert out.startswith("\ufeff".encode()) and out.count(b"\r\n") == len(rows)
+    before, after = canvas.read_gradebook(export), canvas.read_gradebook(tmp_path / "out" / "gradebook_import.csv")
+    assert after.delimiter == ";" and after.rows[0] == before.rows[0] and after.rows[2] == before.rows[2]
+    assert after.cell(1235, after.header.index(COLUMN)) == "15"
+
+
+def test_no_scaling_when_the_column_is_worth_the_checks(tmp_path):
+    export = tmp_path / "export.csv"
+    export.write_text(
+        EXPORT.read_text(encoding="utf-8").replace(",10.00,20.00,20.00,", ",10.00,10.00,20.00,"), encoding="utf-8"
+    )
+    result = canvas.grade_canvas(FIXTURES / "submissions.zip", export, SPEC, tmp_path / "out", grade=fake_grade([]))
+    assert result.scores == {u: canvas.format_score(float(s) / 2) for u, s in EXPECTED_CELLS.items()}
+    assert not any("scaled" in n for n in result.notes)
+
+
+# --- bad input ------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "evil",
+    [
+        "../escaped_1234_1_problem1_reaching.ipynb",
+        "/etc/x_1234_1_p.ipynb",
+        "a/../../x_1234_1_p.ipynb",
+        "C:\\x_1234_1_p.ipynb",
+        "..\\x_1234_1_p.ipynb",
+    ],
+)
+def test_zip_slip_is_refused(tmp_path, evil):
+    members = dict(ZIP_MEMBERS)
+    members[evil] = fake_notebook(p1_ik=3)
+    zpath = build_zip(tmp_path / "evil.zip", members)
+    calls = []
+    with pytest.raises(ValueError, match="points outside the folder"):
+        canvas.grade_canvas(zpath, EXPORT, SPEC, tmp_path / "out", grade=fake_grade(calls))
+    assert calls == [] and not (tmp_path / "escaped_1234_1_problem1_reaching.ipynb").exists()
+
+
+def test_zip_bombs_are_refused_or_left_ungraded(tmp_path, monkeypatch):
+    big = build_zip(
+        tmp_path / "big.zip", {"smithbob_1234_50001_problem1_reaching.ipynb": fake_notebook(p1_ik=3) + b" " * 200_000}
+    )
+    monkeypatch.setattr(canvas, "MAX_ZIP_BYTES", 100_000)
+    with pytest.raises(ValueError, match="would unpack to"):
+        canvas.grade_canvas(big, EXPORT, SPEC, tmp_path / "out", grade=fake_grade([]))
+    monkeypatch.setattr(canvas, "MAX_ZIP_BYTES", 10**9)
+    monkeypatch.setattr(canvas, "MAX_NOTEBOOK_BYTES", 100_000)
+    calls = []
+    result = canvas.grade_canvas(big, EXPORT, SPEC, tmp_path / "out", grade=fake_grade(calls))
+    assert calls == [] and result.scores == {}
+    assert any("larger than" in m for m in result.not_scored)
+
+
+def test_a_lying_size_header_does_not_get_past_the_limit(tmp_path):
+    zpath = build_zip(tmp_path / "liar.zip", {"a_1_2_b.ipynb": b"x" * 5000})
+    with zipfile.ZipFile(zpath) as zf:
+        assert canvas.read_member(zf, zf.getinfo("a_1_2_b.ipynb"), limit=100) is None
+        assert len(canvas.read_member(zf, zf.getinfo("a_1_2_b.ipynb"), limit=5000)) == 5000
+    with zipfile.ZipFile(zpath) as zf:
+        info = zf.getinfo("a_1_2_b.ipynb")
+        info.file_size = 10  # the header claims 10 bytes: reading stops there, and the check sum says so
+        with pytest.raises(zipfile.BadZipFile):
+            canvas.read_member(zf, info, limit=100)
+
+
+def test_a_damaged_notebook_is_reported_not_graded(tmp_path):
+    data = bytearray(
+        build_zip(
+            tmp_path / "ok.zip", {"smithbob_1234_50001_problem1_reaching.ipynb": fake_notebook(p1_ik=3) * 20}
+        ).read_bytes()
+    )
+    data[200:260] = bytes(60)  # zero a stretch of the compressed notebook
+    (tmp_path / "damaged.zip").write_bytes(bytes(data))
+    calls = []
+    result = canvas.grade_canvas(tmp_path / "damaged.zip", EXPORT, SPEC, tmp_path / "out", grade=fake_grade(calls))
+    assert calls == [] and result.scores == {}
+    assert any("damaged in the zip" in m for m in result.not_scored)
+
+
+def test_a_csv_that_is_not_a_canvas_gradebook_says_so(tmp_path):
+    other = tmp_path / "grades.csv"
+    other.write_text("name,score\nBob,3\n", encoding="utf-8")
+    with pytest.raises(
+        ValueError,
+        match=r"not a Canvas gradebook export: its first row should begin with "
+        r"Student, ID.*Export Entire Gradebook",
+    ):
+        canvas.read_gradebook(other)
+    no_section = tmp_path / "nosection.csv"
+    no_section.write_text("Student,ID,SIS Login ID,Problem 1 (4101)\n", encoding="utf-8")
+    with pytest.raises(ValueError, match="no Section column"):
+        canvas.read_gradebook(no_section)
+    latin = tmp_path / "latin.csv"
+    latin.write_bytes(EXPORT.read_text(encoding="utf-8").encode("latin-1"))
+    with pytest.raises(ValueError, match="not UTF-8"):
+        canvas.read_gradebook(latin)
+
+
+def test_a_column_that_does_not_exist_lists_the_assignment_columns(tmp_path):
+    gradebook = canvas.read_gradebook(EXPORT)
+    with pytest.raises(ValueError) as err:
+        canvas.choose_column(gradebook, "problem1", "Problem 3 (4103)")
+    message = str(err.value)
+    assert "no assignment column 'Problem 3 (4103)'" in message
+    for header in ("'Task 1 quiz (4100)'", "'Problem 1: Reaching (4101)'", "'Problem 2: Tracking (4102)'"):
+        assert header in message
+    assert "Current Score" not in message and "Notes" not in message
+    # the full header, the assignment id and the title all name the column; so does the Problem alone
+    col = gradebook.header.index(COLUMN)
+    for name in (COLUMN, "4101", "Problem 1: Reaching", None):
+        assert canvas.choose_column(gradebook, "problem1", name) == col
+    with pytest.raises(ValueError, match="no assignment column of the gradebook names 'problem7'"):
+        canvas.choose_column(gradebook, "problem7")
+
+
+def test_cli_reports_a_bad_column_in_plain_words(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        canvas.main(
+            [
+                "--spec",
+                str(SPEC),
+                str(FIXTURES / "submissions.zip"),
+                "--gradebook",
+                str(EXPORT),
+                "--column",
+                "Problem 9",
+                "--out",
+                str(tmp_path / "out"),
+            ]
+        )
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert "no assignment column 'Problem 9'" in err and "Problem 1: Reaching (4101)" in err
+
+
+# --- end to end (slow: grades one real notebook with the batch grader, about a minute) ----------
+
+
+def test_end_to_end_with_the_real_batch_grader(tmp_path):
+    """SLOW. The master notebook of Problem 1, submitted through Canvas, earns full marks in the import."""
+    master = (ROOT / "notebooks" / "masters" / "problem1_reaching.ipynb").read_bytes()
+    zpath = build_zip(
+        tmp_path / "submissions.zip",
+        {"smithbob_1234_50001_problem1_reaching.ipynb": master, "garcíaana_LATE_1235_50002_notes.pdf": b"%PDF"},
+    )
+    shutil.copy(EXPORT, tmp_path / "export.csv")
+    result = canvas.grade_canvas(zpath, tmp_path / "export.csv", SPEC, tmp_path / "out", jobs=1)
+    assert result.scores == {1234: "20"}, (tmp_path / "out" / "report.txt").read_text()
+    after = canvas.read_gradebook(tmp_path / "out" / "gradebook_import.csv")
+    assert after.cell(1234, after.header.index(COLUMN)) == "20"
+    assert after.cell(1235, after.header.index(COLUMN)) == ""
+    assert (tmp_path / "out" / "batch" / "grades.csv").is_file()
