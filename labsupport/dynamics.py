@@ -43,8 +43,9 @@ def bias_forces(data: mujoco.MjData) -> np.ndarray:
     return data.qfrc_bias.copy()
 
 
-def solve_mass(model: mujoco.MjModel, data: mujoco.MjData, rhs: np.ndarray,
-               out: np.ndarray | None = None) -> np.ndarray:
+def solve_mass(
+    model: mujoco.MjModel, data: mujoco.MjData, rhs: np.ndarray, out: np.ndarray | None = None
+) -> np.ndarray:
     r""":math:`x = M(q)^{-1} y` using MuJoCo's sparse factorisation (no explicit inverse).
 
     ``rhs`` is ``(nv,)`` or ``(k, nv)`` (one right-hand side per row).
@@ -56,16 +57,17 @@ def solve_mass(model: mujoco.MjModel, data: mujoco.MjData, rhs: np.ndarray,
     return x.reshape(rhs.shape)
 
 
-def site_jacobian(model: mujoco.MjModel, data: mujoco.MjData, site: int | str,
-                  out: np.ndarray | None = None) -> np.ndarray:
+def site_jacobian(
+    model: mujoco.MjModel, data: mujoco.MjData, site: int | str, out: np.ndarray | None = None
+) -> np.ndarray:
     r"""Geometric Jacobian of a site, shape ``(6, nv)``: rows 0–2 linear, rows 3–5 angular.
 
     .. math:: \begin{bmatrix} v \\ \omega \end{bmatrix} = J(q)\,\dot q
     """
-    site_id = _site_id(model, site)
+    sid = site_id(model, site)
     if out is None:
         out = np.zeros((6, model.nv))
-    mujoco.mj_jacSite(model, data, out[:3], out[3:], site_id)
+    mujoco.mj_jacSite(model, data, out[:3], out[3:], sid)
     return out
 
 
@@ -75,29 +77,49 @@ def site_jdot_qdot(model: mujoco.MjModel, data: mujoco.MjData, site: int | str) 
     With it, :math:`\ddot x = J\ddot q + \dot J\dot q`. Uses ``mj_jacDot`` at the site's
     current position.
     """
-    site_id = _site_id(model, site)
+    sid = site_id(model, site)
     jdot = np.zeros((6, model.nv))
-    mujoco.mj_jacDot(model, data, jdot[:3], jdot[3:], data.site_xpos[site_id],
-                     model.site_bodyid[site_id])
+    mujoco.mj_jacDot(model, data, jdot[:3], jdot[3:], data.site_xpos[sid], model.site_bodyid[sid])
     return jdot @ data.qvel
 
 
-def task_space_inertia(model: mujoco.MjModel, data: mujoco.MjData, jac: np.ndarray,
-                       damping: float = 0.0) -> np.ndarray:
+def jacobian_solve(J: np.ndarray, rhs: np.ndarray, min_pivot: float = 1e-10) -> np.ndarray:
+    r""":math:`x = J^{-1} y` for a square task Jacobian, or a ``ValueError`` at a singular configuration.
+
+    Computed as :math:`x = J^\top (J J^\top)^{-1} y` (equal to :math:`J^{-1}y` when :math:`J` is
+    square and invertible) with MuJoCo's Cholesky factorisation of :math:`J J^\top`, whose rank
+    tells a singular :math:`J` apart: a pivot below ``min_pivot`` means the arm is stretched
+    out or folded, where no joint motion produces some task motion.
+    """
+    JJt = J @ J.T
+    if mujoco.mju_cholFactor(JJt, min_pivot) < len(rhs):
+        raise ValueError(
+            "the Jacobian is singular at this configuration (the arm is stretched out or "
+            "folded): no joint acceleration gives the task acceleration asked for; keep the "
+            "target inside the workspace, away from its boundary"
+        )
+    z = np.empty(len(rhs))
+    mujoco.mju_cholSolve(z, JJt, rhs)
+    return J.T @ z
+
+
+def task_space_inertia(model: mujoco.MjModel, data: mujoco.MjData, jac: np.ndarray, damping: float = 0.0) -> np.ndarray:
     r"""Operational-space (task-space) inertia :math:`\Lambda = (J M^{-1} J^\top + \lambda I)^{-1}`.
 
     ``damping`` (:math:`\lambda \ge 0`) keeps :math:`\Lambda` bounded near singular
     configurations; with :math:`\lambda = 0` and a square invertible :math:`J`,
     :math:`J^\top \Lambda = M J^{-1}`.
     """
-    minv_jt = solve_mass(model, data, jac).T            # M^{-1} J^T, shape (nv, k)
+    minv_jt = solve_mass(model, data, jac).T  # M^{-1} J^T, shape (nv, k)
     lam_inv = jac @ minv_jt
     if damping:
         lam_inv = lam_inv + damping * np.eye(lam_inv.shape[0])
     return np.linalg.solve(lam_inv, np.eye(lam_inv.shape[0]))
 
 
-def _site_id(model: mujoco.MjModel, site: int | str) -> int:
+def site_id(model: mujoco.MjModel, site: int | str) -> int:
+    """The id of a site given by name (or already by id); ``ValueError`` naming the model's
+    sites if there is none of that name."""
     if isinstance(site, str):
         site_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
         if site_id < 0:

@@ -90,12 +90,14 @@ def test_bias_forces_are_gravity_at_rest(arm):
     model, data = arm
     data.qpos[:] = [0.3, -0.4, 0.8]
     mujoco.mj_forward(model, data)
+
     # gravity torque = -dV/dq, from finite differences of the potential energy
     def potential(q):
         d = mujoco.MjData(model)
         d.qpos[:] = q
         mujoco.mj_forward(model, d)
         return -sum(model.body_mass[i] * model.opt.gravity @ d.xipos[i] for i in range(model.nbody))
+
     h = 1e-6
     grad = np.array([(potential(data.qpos + h * e) - potential(data.qpos - h * e)) / (2 * h) for e in np.eye(3)])
     np.testing.assert_allclose(dynamics.bias_forces(data), grad, atol=1e-6)
@@ -108,8 +110,12 @@ def test_site_jacobian_matches_finite_differences(arm):
         _set_state(model, data, rng)
         J = dynamics.site_jacobian(model, data, "tip")
         h = 1e-6
-        fd = np.column_stack([(_tip(model, data, data.qpos + h * e) - _tip(model, data, data.qpos - h * e)) / (2 * h)
-                              for e in np.eye(model.nv)])
+        fd = np.column_stack(
+            [
+                (_tip(model, data, data.qpos + h * e) - _tip(model, data, data.qpos - h * e)) / (2 * h)
+                for e in np.eye(model.nv)
+            ]
+        )
         np.testing.assert_allclose(J[:3], fd, atol=1e-8)
 
 
@@ -148,3 +154,13 @@ def test_unknown_site_is_named(arm):
     model, data = arm
     with pytest.raises(ValueError, match="'hand'.*tip"):
         dynamics.site_jacobian(model, data, "hand")
+
+
+def test_jacobian_solve_is_the_inverse_and_refuses_a_singular_jacobian():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        J, y = rng.normal(size=(3, 3)), rng.normal(size=3)
+        np.testing.assert_allclose(dynamics.jacobian_solve(J, y), np.linalg.solve(J, y), rtol=1e-8, atol=1e-10)
+    J = np.array([[0.9, 0.4], [0.0, 0.0]])  # the 2R stretched out along x
+    with pytest.raises(ValueError, match="singular"):
+        dynamics.jacobian_solve(J, np.array([1.0, 0.0]))

@@ -3,9 +3,8 @@
 import numpy as np
 import pytest
 
-from labsupport import gains, metrics
-from labsupport.controllers.single_joint import (make_computed_torque, make_feedforward,
-                                                 make_pd, make_pi_speed)
+from labsupport import gains, metrics, sim
+from labsupport.controllers.single_joint import computed_torque, feedforward_torque, pd_torque, pi_speed_torque
 from labsupport.plants import SingleJoint
 from labsupport.trajectories import sinusoid, versine
 
@@ -13,20 +12,37 @@ HORIZONTAL = SingleJoint(g=0.0)
 VERTICAL = SingleJoint(g=9.81)
 
 
+def pd_to(theta_d, Kp, Kd):
+    """PD to a set-point, as ``torque(t, state)`` for the analytic plant."""
+    return lambda t, x: pd_torque(x[0], x[1], theta_d, 0.0, Kp, Kd)
+
+
+def pd_along(reference, Kp, Kd):
+    return lambda t, x: pd_torque(x[0], x[1], reference(t).pos, reference(t).vel, Kp, Kd)
+
+
+def computed_torque_along(model, reference, Kp, Kd):
+    return lambda t, x: computed_torque(model, x[0], x[1], *reference(t), Kp, Kd)
+
+
+def feedforward_along(model, reference):
+    return lambda t, x: feedforward_torque(model, *reference(t))
+
+
 def test_first_order_step_response_matches_closed_form():
     tau = 1.0
     log = HORIZONTAL.simulate(lambda t, x: tau, 30.0, rtol=1e-11, atol=1e-12)
     tau_c, omega_ss = HORIZONTAL.M / HORIZONTAL.b, tau / HORIZONTAL.b
     expected = omega_ss * (1 - np.exp(-log.t / tau_c))
-    assert np.max(np.abs(log.theta_dot - expected)) < 1e-6
+    assert np.max(np.abs(log.qdot[:, 0] - expected)) < 1e-6
     assert tau_c == pytest.approx(5.0) and omega_ss == pytest.approx(10.0)
 
 
 def test_free_vertical_arm_settles_hanging_down():
     log = VERTICAL.simulate(lambda t, x: 0.0, 60.0, state0=(np.pi / 3, 0.0))
-    assert log.theta[-1] == pytest.approx(-np.pi / 2, abs=1e-2)
+    assert log.q[:, 0][-1] == pytest.approx(-np.pi / 2, abs=1e-2)
     # energy only decreases under viscous friction
-    energy = 0.5 * VERTICAL.M * log.theta_dot**2 + VERTICAL.m * VERTICAL.g * VERTICAL.r * np.sin(log.theta)
+    energy = 0.5 * VERTICAL.M * log.qdot[:, 0] ** 2 + VERTICAL.m * VERTICAL.g * VERTICAL.r * np.sin(log.q[:, 0])
     assert np.all(np.diff(energy) < 1e-9)
 
 
@@ -35,9 +51,9 @@ def test_pd_meets_overshoot_and_settling_specification():
     wn = gains.exact_settling_frequency(zeta, 2.0)
     g = gains.pd_gains(HORIZONTAL.M, HORIZONTAL.b, wn, zeta)
     theta_d = np.pi / 2
-    log = HORIZONTAL.simulate(make_pd(g.Kp, g.Kd, theta_d), 8.0, rtol=1e-10, atol=1e-12)
-    os = metrics.overshoot(log.theta, theta_d, 0.0)
-    ts = metrics.settling_time(log.t, log.theta, theta_d, 0.0)
+    log = HORIZONTAL.simulate(pd_to(theta_d, g.Kp, g.Kd), 8.0, rtol=1e-10, atol=1e-12)
+    os = metrics.overshoot(log.q[:, 0], theta_d, 0.0)
+    ts = metrics.settling_time(log.t, log.q[:, 0], theta_d, 0.0)
     assert abs(os - 10.0) < 0.5
     assert abs(ts - 2.0) < 0.05 * 2.0
 
@@ -45,44 +61,42 @@ def test_pd_meets_overshoot_and_settling_specification():
 def test_lab_envelope_rule_settles_early():
     """The lab's t_s = 4/(zeta wn) rule: its 'ts = 2 s' design settles in about 1.75 s."""
     (g, so) = gains.spec_gains(HORIZONTAL.M, HORIZONTAL.b, 10.0, 2.0)
-    log = HORIZONTAL.simulate(make_pd(g.Kp, g.Kd, np.pi / 2), 8.0, rtol=1e-10, atol=1e-12)
-    ts = metrics.settling_time(log.t, log.theta, np.pi / 2, 0.0)
+    log = HORIZONTAL.simulate(pd_to(np.pi / 2, g.Kp, g.Kd), 8.0, rtol=1e-10, atol=1e-12)
+    ts = metrics.settling_time(log.t, log.q[:, 0], np.pi / 2, 0.0)
     assert ts == pytest.approx(gains.step_settling_time(so.wn, so.zeta), abs=2e-3)
     assert ts < 1.8
 
 
 def test_step_response_matches_second_order_closed_form():
     g = gains.pd_gains(HORIZONTAL.M, HORIZONTAL.b, 3.0, 0.4)
-    log = HORIZONTAL.simulate(make_pd(g.Kp, g.Kd, 1.0), 5.0, rtol=1e-10, atol=1e-12)
-    assert np.max(np.abs(log.theta - metrics.second_order_step(log.t, 3.0, 0.4))) < 1e-7
+    log = HORIZONTAL.simulate(pd_to(1.0, g.Kp, g.Kd), 5.0, rtol=1e-10, atol=1e-12)
+    assert np.max(np.abs(log.q[:, 0] - metrics.second_order_step(log.t, 3.0, 0.4))) < 1e-7
 
 
 def test_computed_torque_with_exact_model_tracks_sinusoid():
     g = gains.pd_gains(VERTICAL.M, VERTICAL.b, 2.898, 0.69)
-    log = VERTICAL.simulate(make_computed_torque(VERTICAL, g.Kp, g.Kd, sinusoid), 4 * np.pi,
-                            state0=sinusoid(0.0)[:2])
-    assert np.max(np.abs(log.theta - sinusoid(log.t).pos)) < 1e-5
+    log = VERTICAL.simulate(computed_torque_along(VERTICAL, sinusoid, g.Kp, g.Kd), 4 * np.pi, state0=sinusoid(0.0)[:2])
+    assert np.max(np.abs(log.q[:, 0] - sinusoid(log.t).pos)) < 1e-5
 
 
 def test_feedforward_with_exact_model_is_perfect_and_wrong_model_drifts():
-    ref = lambda t: versine(t, np.pi / 2)
-    exact = VERTICAL.simulate(make_feedforward(VERTICAL, ref), np.pi, state0=ref(0.0)[:2])
-    wrong = VERTICAL.simulate(make_feedforward(SingleJoint(r=0.08, g=9.81), ref), np.pi,
-                              state0=ref(0.0)[:2])
-    assert np.max(np.abs(exact.theta - ref(exact.t).pos)) < 1e-5
+    ref = lambda t: versine(t, np.pi / 2)  # noqa: E731
+    exact = VERTICAL.simulate(feedforward_along(VERTICAL, ref), np.pi, state0=ref(0.0)[:2])
+    wrong = VERTICAL.simulate(feedforward_along(SingleJoint(r=0.08, g=9.81), ref), np.pi, state0=ref(0.0)[:2])
+    assert np.max(np.abs(exact.q[:, 0] - ref(exact.t).pos)) < 1e-5
     # Under-compensated gravity in the upper half-plane: the link lags (falls behind) the reference.
-    assert (wrong.theta - ref(wrong.t).pos)[-1] < -0.05
+    assert (wrong.q[:, 0] - ref(wrong.t).pos)[-1] < -0.05
 
 
 def test_pi_speed_control_matches_closed_form():
     wn, zeta, omega_d = 2.0, 0.8, 3.0
-    g = gains.pd_gains(HORIZONTAL.M, HORIZONTAL.b, wn, zeta)   # Kp -> Ki, Kd -> Kp for PI
+    g = gains.pd_gains(HORIZONTAL.M, HORIZONTAL.b, wn, zeta)  # Kp -> Ki, Kd -> Kp for PI
     Kp, Ki = g.Kd, g.Kp
-    log = HORIZONTAL.simulate(make_pi_speed(Kp, Ki, omega_d), 8.0, rtol=1e-10, atol=1e-12)
+    log = HORIZONTAL.simulate(lambda t, x: pi_speed_torque(t, x[0], x[1], omega_d, Kp, Ki), 8.0, rtol=1e-10, atol=1e-12)
     # speed error e = omega_d - omega: M e'' + (b + Kp) e' + Ki e = 0, e(0) = omega_d, e'(0) = -Kp omega_d / M
     e = metrics.second_order_error(log.t, omega_d, -Kp * omega_d / HORIZONTAL.M, wn, zeta)
-    assert np.max(np.abs((omega_d - log.theta_dot) - e)) < 1e-7
-    assert log.theta_dot[-1] == pytest.approx(omega_d, abs=1e-3)
+    assert np.max(np.abs((omega_d - log.qdot[:, 0]) - e)) < 1e-7
+    assert log.qdot[:, 0][-1] == pytest.approx(omega_d, abs=1e-3)
 
 
 @pytest.mark.parametrize("M,b", [(0.5, 0.1), (2.0, 0.0), (0.3, 0.05)])
@@ -108,11 +122,10 @@ def test_lab_gain_figures():
 def test_lab_sinusoid_rms_figures():
     g, _ = gains.spec_gains(0.5, 0.1, 5.0, 2.0)
     wrong = SingleJoint(r=0.08, g=9.81)
-    fb = VERTICAL.simulate(make_pd(g.Kp, g.Kd, sinusoid), 4 * np.pi, state0=sinusoid(0.0)[:2])
-    ct = VERTICAL.simulate(make_computed_torque(wrong, g.Kp, g.Kd, sinusoid), 4 * np.pi,
-                           state0=sinusoid(0.0)[:2])
-    rms_fb = metrics.rms(np.degrees(fb.theta - sinusoid(fb.t).pos))
-    rms_ct = metrics.rms(np.degrees(ct.theta - sinusoid(ct.t).pos))
+    fb = VERTICAL.simulate(pd_along(sinusoid, g.Kp, g.Kd), 4 * np.pi, state0=sinusoid(0.0)[:2])
+    ct = VERTICAL.simulate(computed_torque_along(wrong, sinusoid, g.Kp, g.Kd), 4 * np.pi, state0=sinusoid(0.0)[:2])
+    rms_fb = metrics.rms(np.degrees(fb.q[:, 0] - sinusoid(fb.t).pos))
+    rms_ct = metrics.rms(np.degrees(ct.q[:, 0] - sinusoid(ct.t).pos))
     assert round(rms_fb, 3) == 10.891 and round(rms_ct, 3) == 2.253
     assert round(100 * (1 - rms_ct / rms_fb), 1) == 79.3
 
@@ -122,8 +135,9 @@ def test_cumulative_effort_of_constant_torque():
     assert metrics.cumulative_effort(t, np.full_like(t, 3.0))[-1] == pytest.approx(18.0)
 
 
-@pytest.mark.parametrize("kwargs,word", [({"M": 0.0}, "M"), ({"M": -1.0}, "M"), ({"b": -0.1}, "b"),
-                                         ({"m": float("nan")}, "m")])
+@pytest.mark.parametrize(
+    "kwargs,word", [({"M": 0.0}, "M"), ({"M": -1.0}, "M"), ({"b": -0.1}, "b"), ({"m": float("nan")}, "m")]
+)
 def test_bad_parameters_are_named(kwargs, word):
     with pytest.raises(ValueError, match=rf"^{word} "):
         SingleJoint(**kwargs)
@@ -153,3 +167,30 @@ def test_bad_gain_design_inputs():
         gains.pd_gains(0.5, 5.0, 1.0, 0.1)
     with pytest.raises(ValueError, match="tau_max"):
         gains.actuator_limited_gains(0.5, 0.1, -1.0, 1.0)
+
+
+def test_simulate_returns_the_one_log_type():
+    log = HORIZONTAL.simulate(lambda t, x: 1.0, 1.0, dt=0.01)
+    assert isinstance(log, sim.Log)
+    assert (log.t.shape, log.q.shape, log.qdot.shape, log.tau.shape, log.ctrl.shape) == (
+        (100,),
+        (100, 1),
+        (100, 1),
+        (100, 1),
+        (100, 1),
+    )
+    assert (log.ee.shape, log.ee_rot.shape, log.ref.shape, log.err.shape) == ((100, 0), (100, 0, 0), (100, 0), (100, 0))
+    np.testing.assert_array_equal(log.tau, 1.0)
+
+
+def test_laws_are_their_equations_at_a_state():
+    """Each law against its formula written out by hand at one state."""
+    model = SingleJoint(M=0.7, m=1.2, r=0.09, b=0.2, g=9.81)
+    theta, theta_dot, theta_d, theta_dot_d, theta_ddot_d, Kp, Kd = 0.3, -0.4, 0.5, 0.1, -0.2, 7.0, 2.0
+    assert pd_torque(theta, theta_dot, theta_d, theta_dot_d, Kp, Kd) == pytest.approx(7.0 * 0.2 + 2.0 * 0.5)
+    tau_ff = 0.7 * -0.2 + 1.2 * 9.81 * 0.09 * np.cos(0.5) + 0.2 * 0.1
+    assert feedforward_torque(model, theta_d, theta_dot_d, theta_ddot_d) == pytest.approx(tau_ff)
+    assert computed_torque(model, theta, theta_dot, theta_d, theta_dot_d, theta_ddot_d, Kp, Kd) == pytest.approx(
+        tau_ff + 2.4
+    )
+    assert pi_speed_torque(2.0, 1.5, 0.8, 1.0, 3.0, 4.0, theta0=0.5) == pytest.approx(3.0 * 0.2 + 4.0 * (2.0 - 1.0))

@@ -1,23 +1,28 @@
-"""Tasks 2 and 3: the MuJoCo models against the analytic ones, the controllers against
-closed forms and against each other, and the lab's printed figures (within 1 %)."""
+"""Tasks 2 and 3: the MuJoCo models against the analytic ones, the laws against closed forms
+and their stated formulas, the lab's printed figures (within 1 %), and the pages showing the
+code of every law they run."""
 
+import ast
+import json
 from functools import partial
+from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
 
 import labsupport  # noqa: F401
-from labsupport import gains, metrics, sim
+from labsupport import gains, metrics, sim, trajectories
 from labsupport.controllers import joint_space as js
 from labsupport.controllers import operational_space as osc
-from labsupport.controllers.single_joint import make_computed_torque, make_pd
+from labsupport.controllers.single_joint import computed_torque, pd_torque
 from labsupport.dynamics import mass_matrix
 from labsupport.kinematics import planar_2r as k2
 from labsupport.plants import SingleJoint, load_model
 from labsupport.trajectories import circle_2d, sinusoid
 
 CIRCLE = partial(circle_2d, center=(0.5, 0.2), radius=0.15, period=6.0)
+NOTEBOOKS = Path(__file__).resolve().parents[1] / "notebooks"
 
 
 def within(value, lab, rel=0.01):
@@ -25,6 +30,7 @@ def within(value, lab, rel=0.01):
 
 
 # --- Task 2: the single joint in MuJoCo ------------------------------------------------
+
 
 def test_single_joint_model_matches_the_analytic_one():
     model, data = load_model("single_joint")
@@ -46,17 +52,22 @@ def test_single_joint_free_response_matches_scipy():
     model, data = load_model("single_joint")
     log = sim.simulate(model, data, lambda m, d: np.zeros(1), 1.0, q0=[0.3])
     ref = SingleJoint(g=9.81).simulate(lambda t, x: 0.0, 1.0, state0=(0.3, 0.0), dt=1e-3)
-    np.testing.assert_allclose(log.q[:, 0], ref.theta, atol=5e-3)
+    np.testing.assert_allclose(log.q[:, 0], ref.q[:, 0], atol=5e-3)
 
 
 def task2_rms_deg(r_tilde, feedforward=True):
     (Kp, Kd), _ = gains.spec_gains(0.5, 0.1, 5.0, 2.0)
     model, data = load_model("single_joint")
-    law = (make_computed_torque(SingleJoint(r=r_tilde, g=9.81), Kp, Kd, sinusoid) if feedforward
-           else make_pd(Kp, Kd, sinusoid))
+    ctrl_model = SingleJoint(r=r_tilde, g=9.81)
+
+    def controller(model, data):
+        theta, theta_dot, ref = data.qpos[0], data.qvel[0], sinusoid(data.time)
+        if feedforward:
+            return np.array([computed_torque(ctrl_model, theta, theta_dot, *ref, Kp, Kd)])
+        return np.array([pd_torque(theta, theta_dot, ref.pos, ref.vel, Kp, Kd)])
+
     r0 = sinusoid(0.0)
-    log = sim.simulate(model, data, sim.from_state_torque(law), 4 * np.pi, q0=[r0.pos], qdot0=[r0.vel],
-                       torque_limit=20.0)
+    log = sim.simulate(model, data, controller, 4 * np.pi, q0=[r0.pos], qdot0=[r0.vel], torque_limit=20.0)
     return float(np.degrees(metrics.rms(log.q[:, 0] - sinusoid(log.t).pos))), log
 
 
@@ -80,13 +91,17 @@ def test_task2_feedback_alone_is_much_worse():
 
 # --- Task 3.1: reaching -----------------------------------------------------------------
 
+
 def reaching_runs():
     model, data = load_model("planar_2r")
     target = k2.sample_annulus(np.random.default_rng(42))
     q_d = k2.inverse_kinematics(target, branch="up")
     Kp, Kd = gains.ct_gains(10.0, 0.9)
-    runs = {}
-    for name, ctrl in (("PD", js.make_pd_setpoint(q_d, 40.0, 1.0)), ("CT", js.make_ct_setpoint(model, q_d, Kp, Kd))):
+    runs, rest = {}, np.zeros(2)
+    for name, ctrl in (
+        ("PD", lambda m, d: js.pd_joint_torque(m, d, q_d, rest, 40.0, 1.0)),
+        ("CT", lambda m, d: js.ct_joint_torque(m, d, q_d, rest, rest, Kp, Kd)),
+    ):
         runs[name] = sim.simulate(model, data, ctrl, 3.0, q0=[0.2, 0.3], site="end_effector", log_after_step=True)
     return target, q_d, runs
 
@@ -96,8 +111,8 @@ def test_task3_1_target_and_final_errors():
     np.testing.assert_allclose(target, [0.64138, -0.25918], atol=1e-5)
     np.testing.assert_allclose(np.degrees(q_d), [-56.731, 80.133], atol=1e-3)
     final = {name: 1000 * np.linalg.norm(log.ee[-1, :2] - target) for name, log in runs.items()}
-    assert within(final["PD"], 11.877)          # PD still rings after 3 s
-    assert final["CT"] < 1e-6                   # CT has converged (e^{-27} of 1 m)
+    assert within(final["PD"], 11.877)  # PD still rings after 3 s
+    assert final["CT"] < 1e-6  # CT has converged (e^{-27} of 1 m)
 
 
 @pytest.mark.parametrize("wn, zeta", [(10.0, 0.9), (6.0, 1.0), (8.0, 1.5)])
@@ -107,97 +122,161 @@ def test_ct_setpoint_response_is_the_analytic_second_order_one(wn, zeta):
     model, data = load_model("planar_2r")
     q_d, q0 = np.array([-0.99, 1.4]), np.array([0.2, 0.3])
     Kp, Kd = gains.ct_gains(wn, zeta)
-    deviation = []
+    deviation, rest = [], np.zeros(2)
+
+    def controller(model, data):
+        return js.ct_joint_torque(model, data, q_d, rest, rest, Kp, Kd)
+
     for dt in (0.002, 0.0002):
         model.opt.timestep = dt
-        log = sim.simulate(model, data, js.make_ct_setpoint(model, q_d, Kp, Kd), 2.0, q0=q0)
+        log = sim.simulate(model, data, controller, 2.0, q0=q0)
         analytic = metrics.second_order_error(log.t, q_d - q0, [0.0, 0.0], wn, zeta)
         deviation.append(np.abs((q_d - log.q) - analytic).max() / np.abs(q_d - q0).max())
     assert deviation[0] < 0.005
-    assert deviation[1] < deviation[0] / 8          # first order in the step
+    assert deviation[1] < deviation[0] / 8  # first order in the step
 
 
 # --- Task 3.2: tracking -----------------------------------------------------------------
+
+
+def os_ct(model, Kp, Kd, duration=12.0):
+    """OS-CT on the circle as the notebook writes it: reference sampled once, a closure calls the law."""
+    ref = trajectories.sample(CIRCLE, model.opt.timestep, duration)
+
+    def controller(model, data):
+        x_d, xdot_d, xddot_d = ref.at(data.time)
+        return osc.os_ct_torque(model, data, "end_effector", x_d, xdot_d, xddot_d, Kp, Kd)
+
+    return controller
+
+
+def ik_ct(model, Kp, Kd, duration=12.0):
+    """IK + joint CT: the circle turned into a joint reference once, then joint CT."""
+    ref = trajectories.sample(lambda t: k2.joint_reference(CIRCLE(t)), model.opt.timestep, duration)
+
+    def controller(model, data):
+        q_d, qdot_d, qddot_d = ref.at(data.time)
+        return js.ct_joint_torque(model, data, q_d, qdot_d, qddot_d, Kp, Kd)
+
+    return controller
+
 
 def tracking_run(make, start_on_path=False, log_after_step=True, duration=12.0):
     model, data = load_model("planar_2r")
     q0 = k2.inverse_kinematics(CIRCLE(0.0).pos, branch="up")
     qdot0 = np.linalg.solve(k2.jacobian(q0), CIRCLE(0.0).vel) if start_on_path else np.zeros(2)
     Kp, Kd = gains.ct_gains(8.0, 1.0)
-    return sim.simulate(model, data, make(model, CIRCLE, Kp, Kd), duration, q0=q0, qdot0=qdot0,
-                        site="end_effector", reference=CIRCLE, log_after_step=log_after_step)
+    return sim.simulate(
+        model,
+        data,
+        make(model, Kp, Kd, duration),
+        duration,
+        q0=q0,
+        qdot0=qdot0,
+        site="end_effector",
+        reference=CIRCLE,
+        log_after_step=log_after_step,
+    )
 
 
-@pytest.mark.parametrize("make, lab", [(osc.make_os_ct_2r, (0.224, 0.952)), (osc.make_ik_ct_2r, (0.224, 0.955))])
+@pytest.mark.parametrize("make, lab", [(os_ct, (0.224, 0.952)), (ik_ct, (0.224, 0.955))])
 def test_task3_2_lab_figures(make, lab):
     rms_mm = 1000 * metrics.rms(tracking_run(make).err)
     assert within(rms_mm[0], lab[0]) and within(rms_mm[1], lab[1])
     assert [f"{v:.3f}" for v in rms_mm] == [f"{v:.3f}" for v in lab]
 
 
-@pytest.mark.parametrize("make", [osc.make_os_ct_2r, osc.make_ik_ct_2r])
+@pytest.mark.parametrize("make", [os_ct, ik_ct])
 def test_task3_2_residual_explained_and_removed(make):
     """ex comes from logging the state one step after the reference; ey from the arm
     starting at rest on a moving reference. Removing both leaves micrometres."""
     same_instant = 1000 * metrics.rms(tracking_run(make, log_after_step=False).err)
     on_path = 1000 * metrics.rms(tracking_run(make, start_on_path=True).err)
     both = 1000 * metrics.rms(tracking_run(make, start_on_path=True, log_after_step=False).err)
-    speed_step_mm = 1000 * 0.15 * 2 * np.pi / 6.0 * 0.002      # |x_d'| dt
-    assert same_instant[0] < 0.06                               # the x lag is gone...
-    assert on_path[1] == pytest.approx(speed_step_mm / np.sqrt(2), rel=0.02)   # ...or only the lag is left
+    speed_step_mm = 1000 * 0.15 * 2 * np.pi / 6.0 * 0.002  # |x_d'| dt
+    assert same_instant[0] < 0.06  # the x lag is gone...
+    assert on_path[1] == pytest.approx(speed_step_mm / np.sqrt(2), rel=0.02)  # ...or only the lag is left
     assert np.all(both <= 0.1) and np.all(both < 0.005)
 
 
 def test_velocity_transient_matches_closed_form():
     """Starting at rest, the y error is the critically damped response to e'(0) = -|x_d'(0)|:
     e(t) = -v t e^{-wn t}; its RMS over 12 s is about 1 mm."""
-    log = tracking_run(osc.make_os_ct_2r, log_after_step=False)
+    log = tracking_run(os_ct, log_after_step=False)
     v = 0.15 * 2 * np.pi / 6.0
     analytic = -v * log.t * np.exp(-8.0 * log.t)
     early = log.t < 1.0
     assert np.abs(-log.err[early, 1] - analytic[early]).max() < 0.03 * np.abs(analytic).max()
 
 
-def test_lean_2r_controllers_equal_the_generic_array_laws():
+def test_laws_are_their_formulas_at_random_states():
+    """OS-CT and joint CT against their equations evaluated independently: the closed-form 2R
+    kinematics (x, J, Jdot qdot) of labsupport.kinematics.planar_2r, with M and h from MuJoCo."""
     model, data = load_model("planar_2r")
     rng = np.random.default_rng(7)
     Kp, Kd = 64.0, 16.0
-    os_ctrl = osc.make_os_ct_2r(model, CIRCLE, Kp, Kd)
-    ik_ctrl = osc.make_ik_ct_2r(model, CIRCLE, Kp, Kd)
-    for k in rng.integers(0, 3000, size=10):
-        data.time = k * model.opt.timestep
-        data.qpos[:] = k2.inverse_kinematics(CIRCLE(data.time).pos) + rng.normal(0, 0.05, 2)
+    for _ in range(10):
+        data.qpos[:] = rng.uniform(-np.pi, np.pi, 2) * [1.0, 0.8] + [0.0, 0.2]
         data.qvel[:] = rng.normal(0, 1.0, 2)
         mujoco.mj_forward(model, data)
         M, h, q, qdot = mass_matrix(model, data), data.qfrc_bias.copy(), data.qpos.copy(), data.qvel.copy()
-        r = CIRCLE(data.time)
+        x_d, xdot_d, xddot_d = rng.normal(0, 0.3, 2), rng.normal(0, 0.5, 2), rng.normal(0, 1.0, 2)
         J = k2.jacobian(q)
-        expected = osc.os_ct_torque(M, h, J, k2.jdot_qdot(q, qdot), k2.forward_kinematics(q), J @ qdot,
-                                    r.pos, r.vel, r.acc, Kp, Kd)
-        np.testing.assert_allclose(os_ctrl(model, data), expected, rtol=1e-10, atol=1e-12)
-        jr = k2.joint_reference(r)
-        expected = js.ct_joint_torque(M, h, q, qdot, jr.pos, jr.vel, jr.acc, Kp, Kd)
-        np.testing.assert_allclose(ik_ctrl(model, data), expected, rtol=1e-10, atol=1e-12)
+        a = xddot_d + Kd * (xdot_d - J @ qdot) + Kp * (x_d - k2.forward_kinematics(q)) - k2.jdot_qdot(q, qdot)
+        expected = M @ np.linalg.solve(J, a) + h
+        np.testing.assert_allclose(
+            osc.os_ct_torque(model, data, "end_effector", x_d, xdot_d, xddot_d, Kp, Kd), expected, rtol=1e-9, atol=1e-9
+        )
+        q_d, qdot_d, qddot_d = x_d * 3, xdot_d, xddot_d
+        expected = M @ (qddot_d + Kd * (qdot_d - qdot) + Kp * (q_d - q)) + h
+        np.testing.assert_allclose(
+            js.ct_joint_torque(model, data, q_d, qdot_d, qddot_d, Kp, Kd), expected, rtol=1e-12, atol=1e-12
+        )
+        np.testing.assert_allclose(
+            js.pd_joint_torque(model, data, q_d, qdot_d, Kp, Kd), Kp * (q_d - q) + Kd * (qdot_d - qdot), rtol=1e-12
+        )
 
 
 def test_os_ct_refuses_a_singular_jacobian():
     model, data = load_model("planar_2r")
-    ctrl = osc.make_os_ct_2r(model, CIRCLE, 64.0, 16.0)
-    data.qpos[:] = [0.3, 0.0]                   # stretched out: det J = l1 l2 sin q2 = 0
-    with pytest.raises(ValueError, match="singular"):
-        ctrl(model, data)
+    for q2 in (0.0, np.pi):  # stretched out, folded back: det J = l1 l2 sin q2 = 0
+        data.qpos[:] = [0.3, q2]
+        mujoco.mj_forward(model, data)
+        with pytest.raises(ValueError, match="singular"):
+            osc.os_ct_torque(model, data, "end_effector", np.zeros(2), np.zeros(2), np.zeros(2), 64.0, 16.0)
 
 
-def test_generic_joint_ct_tracking_equals_the_2r_ik_controller():
-    """make_ct_tracking (any n, NumPy) with the IK joint reference gives the same torques as
-    the scalar 2R IK + CT controller, along a whole run."""
-    model, data = load_model("planar_2r")
-    Kp, Kd = gains.ct_gains(8.0, 1.0)
-    generic = js.make_ct_tracking(model, lambda t: k2.joint_reference(CIRCLE(t)), Kp, Kd)
-    lean = osc.make_ik_ct_2r(model, CIRCLE, Kp, Kd)
-    q0 = k2.inverse_kinematics(CIRCLE(0.0).pos)
-    a = sim.simulate(model, data, generic, 1.0, q0=q0)
-    b = sim.simulate(model, data, lean, 1.0, q0=q0)
-    np.testing.assert_allclose(a.tau, b.tau, rtol=1e-9, atol=1e-12)
-    with pytest.raises(ValueError, match="joint angles"):
-        js.make_ct_tracking(model, lambda t: CIRCLE(t)._replace(pos=np.zeros(3)), Kp, Kd)
+# --- the pages show the code of every law they run -------------------------------------
+
+
+def _notebook_code(name):
+    nb = json.loads((NOTEBOOKS / f"{name}.ipynb").read_text(encoding="utf-8"))
+    return "\n".join(
+        line
+        for c in nb["cells"]
+        if c["cell_type"] == "code"
+        for line in "".join(c["source"]).splitlines()
+        if not line.lstrip().startswith(("%", "!"))
+    )
+
+
+@pytest.mark.parametrize("name", ["task1_single_joint", "task2_single_joint_mujoco", "task3_planar_2r"])
+def test_each_law_a_task_runs_is_shown_with_show_law(name):
+    """Every function a Task notebook imports from labsupport.controllers is passed to
+    labsupport.book.show_law somewhere in the notebook."""
+    tree = ast.parse(_notebook_code(name))
+    laws = {
+        a.asname or a.name
+        for node in ast.walk(tree)
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("labsupport.controllers")
+        for a in node.names
+    }
+    shown = {
+        ast.unparse(node.args[0])
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "show_law"
+    }
+    called = {node.func.id for node in ast.walk(tree) if isinstance(node, ast.Call) and isinstance(node.func, ast.Name)}
+    assert laws, f"{name} imports no law from labsupport.controllers"
+    assert laws <= called, f"{name} imports laws it never calls: {sorted(laws - called)}"
+    assert laws <= shown, f"{name} runs laws it does not show with show_law: {sorted(laws - shown)}"

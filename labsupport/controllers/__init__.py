@@ -1,7 +1,8 @@
-"""Controllers as small functions of plain arrays (state, reference, gains) returning torque.
+"""Control laws, one function each, named after the concept, with the equation in the docstring.
 
 ``single_joint``       PI speed, PD, feedforward and computed torque for the 1R arm
-``joint_space``        joint PD and computed torque for MuJoCo arms (2R, 3R)
-``operational_space``  operational-space CT and IK + joint CT (2R, 3R)
+``joint_space``        joint PD and joint computed torque for MuJoCo arms
+``operational_space``  operational-space computed torque (IK + joint CT composes
+                       ``kinematics.planar_2r.joint_reference`` with ``joint_space.ct_joint_torque``)
 ``ur5e``               operational-space control of the UR5e through its position servos
 """

@@ -1,86 +1,58 @@
-r"""Controllers for the single joint :math:`\tau = M\ddot\theta + h(\theta,\dot\theta)`.
+r"""Control laws for the single joint :math:`\tau = M\ddot\theta + h(\theta,\dot\theta)`.
 
-Each ``make_*`` function returns ``torque(t, state)`` for
-:meth:`labsupport.plants.SingleJoint.simulate`; ``state = (theta, theta_dot)``.
-A controller's *model* (:math:`\tilde M`, :math:`\tilde h`) is a
-:class:`~labsupport.plants.SingleJoint` that may differ from the true plant.
+Each law is a plain function of numbers (or arrays of them) returning the torque, so the same
+function runs on the analytic plant (wrapped as ``torque(t, state)`` for
+:meth:`labsupport.plants.SingleJoint.simulate`) and on the MuJoCo arm (wrapped as
+``controller(model, data)`` for :func:`labsupport.sim.simulate`). A law's *model*
+(:math:`\tilde M`, :math:`\tilde h`) is a :class:`~labsupport.plants.SingleJoint` that may
+differ from the true plant.
 """
 
 from __future__ import annotations
 
-from typing import Callable
-
-import numpy as np
-
 from labsupport.plants import SingleJoint
-from labsupport.trajectories import Reference
-
-TorqueFn = Callable[[float, np.ndarray], float]
-ReferenceFn = Callable[[float], Reference]
 
 
-def pd_torque(theta, theta_dot, theta_d, theta_dot_d, Kp: float, Kd: float):
-    r"""PD feedback :math:`\tau_{fb} = K_p(\theta_d - \theta) + K_d(\dot\theta_d - \dot\theta)` (Eq. 11.24)."""
+def pi_speed_torque(t, theta, theta_dot, omega_d, Kp, Ki, theta0=0.0):
+    r"""PI speed control of :math:`M\dot\omega + b\omega = \tau`:
+
+    .. math:: \tau = K_p(\omega_d - \omega) + K_i\int_0^t(\omega_d - \omega)\,dt'
+                   = K_p(\omega_d - \dot\theta) + K_i\big(\omega_d t - (\theta - \theta_0)\big)
+
+    The angle is the integral of the speed, so the integral of the speed error needs no extra
+    state. The speed error :math:`e = \omega_d - \omega` obeys
+    :math:`M\ddot e + (b + K_p)\dot e + K_i e = 0`, so :func:`labsupport.gains.pd_gains` designs
+    (Ki, Kp) as it designs (Kp, Kd) for PD.
+    """
+    speed_error = omega_d - theta_dot
+    integral_of_speed_error = omega_d * t - (theta - theta0)
+    return Kp * speed_error + Ki * integral_of_speed_error
+
+
+def pd_torque(theta, theta_dot, theta_d, theta_dot_d, Kp, Kd):
+    r"""PD feedback (Eq. 11.24): :math:`\tau_{fb} = K_p(\theta_d - \theta) + K_d(\dot\theta_d - \dot\theta)`.
+
+    For a set-point, :math:`\dot\theta_d = 0`.
+    """
     return Kp * (theta_d - theta) + Kd * (theta_dot_d - theta_dot)
 
 
-def feedforward_torque(model: SingleJoint, ref: Reference):
-    r"""Model-based feedforward :math:`\tau_{ff} = \tilde M\ddot\theta_d + \tilde h(\theta_d,\dot\theta_d)` (Eq. 11.32)."""
-    return model.M * ref.acc + model.h(ref.pos, ref.vel)
+def feedforward_torque(model: SingleJoint, theta_d, theta_dot_d, theta_ddot_d):
+    r"""Model-based feedforward (Eq. 11.32):
+
+    .. math:: \tau_{ff} = \tilde M\ddot\theta_d + \tilde h(\theta_d,\dot\theta_d)
+
+    It uses the reference only, never the measured state: the torque the model says the move needs.
+    """
+    return model.M * theta_ddot_d + model.h(theta_d, theta_dot_d)
 
 
-def make_pd(Kp: float, Kd: float, reference: ReferenceFn | float) -> TorqueFn:
-    r"""PD law :math:`\tau = K_p e + K_d\dot e` about a reference (a set-point if ``reference`` is a number)."""
-    ref_fn = _as_reference(reference)
-
-    def torque(t, state):
-        ref = ref_fn(t)
-        return pd_torque(state[0], state[1], ref.pos, ref.vel, Kp, Kd)
-
-    return torque
-
-
-def make_feedforward(model: SingleJoint, reference: ReferenceFn) -> TorqueFn:
-    r"""Open-loop feedforward :math:`\tau = \tilde M\ddot\theta_d + \tilde h(\theta_d,\dot\theta_d)`; ignores the state."""
-
-    def torque(t, state):
-        return feedforward_torque(model, reference(t))
-
-    return torque
-
-
-def make_computed_torque(model: SingleJoint, Kp: float, Kd: float, reference: ReferenceFn) -> TorqueFn:
+def computed_torque(model: SingleJoint, theta, theta_dot, theta_d, theta_dot_d, theta_ddot_d, Kp, Kd):
     r"""Feedforward plus feedback (Eq. 11.35):
 
     .. math:: \tau = \underbrace{\tilde M\ddot\theta_d + \tilde h(\theta_d,\dot\theta_d)}_{\tau_{ff}}
                    + \underbrace{K_p(\theta_d-\theta) + K_d(\dot\theta_d-\dot\theta)}_{\tau_{fb}}
     """
-
-    def torque(t, state):
-        ref = reference(t)
-        return feedforward_torque(model, ref) + pd_torque(state[0], state[1], ref.pos, ref.vel, Kp, Kd)
-
-    return torque
-
-
-def make_pi_speed(Kp: float, Ki: float, omega_d: float, theta0: float = 0.0) -> TorqueFn:
-    r"""PI speed control :math:`\tau = K_p(\omega_d - \omega) + K_i\int_0^t(\omega_d - \omega)\,dt'`.
-
-    The angle is the integral of the speed, so the integral term is
-    :math:`K_i(\omega_d t - (\theta - \theta_0))` and the law needs no extra state.
-    On :math:`M\dot\omega + b\omega = \tau` the speed error :math:`e = \omega_d - \omega` obeys
-    :math:`M\ddot e + (b + K_p)\dot e + K_i e = 0`, so
-    :func:`labsupport.gains.pd_gains` designs (Ki, Kp) exactly as it designs (Kp, Kd) for PD.
-    """
-
-    def torque(t, state):
-        return Kp * (omega_d - state[1]) + Ki * (omega_d * t - (state[0] - theta0))
-
-    return torque
-
-
-def _as_reference(reference) -> ReferenceFn:
-    if callable(reference):
-        return reference
-    setpoint = float(reference)
-    return lambda t: Reference(setpoint, 0.0, 0.0)
+    tau_ff = feedforward_torque(model, theta_d, theta_dot_d, theta_ddot_d)
+    tau_fb = pd_torque(theta, theta_dot, theta_d, theta_dot_d, Kp, Kd)
+    return tau_ff + tau_fb
