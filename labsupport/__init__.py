@@ -8,14 +8,15 @@ Modules, one idea each:
 ``kinematics``            forward/inverse kinematics of the 2R and 3R arms
 ``trajectories``          versine, sinusoid and circles: position, velocity, acceleration
 ``gains``                 PD gain design (actuator limit, %OS/settling time, wn/zeta)
-``controllers``           PI, PD, feedforward, computed torque, operational space
+``controllers``           the control laws, one function each: PI, PD, feedforward, computed torque, OS-CT
 ``sim``                   one MuJoCo simulation loop that returns a :class:`~labsupport.sim.Log`
 ``metrics``               RMS error, cumulative effort, overshoot, settling time
 ``render``                offscreen MuJoCo video (EGL, OSMesa fallback) with mediapy
 ``ur5e``                  the Menagerie UR5e with the lab's scene, loaded from any directory
 ``grading``               in-notebook checks of the Problems and the batch grader
 ``plots``                 the figure layouts the notebooks share
-``book``                  glue: numbers in the book's prose come from executed outputs
+``book``                  glue and show_law: prose numbers and law code come from the package
+``validate``              the one input validator (shapes, finite values, signs)
 ========================  ===============================================================
 
 Importing the package chooses an OpenGL backend for MuJoCo (``MUJOCO_GL``) before MuJoCo
