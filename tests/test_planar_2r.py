@@ -80,7 +80,7 @@ def test_jdot_qdot_matches_finite_difference_of_j_qdot():
     r"""d/dt (J(q) qdot) at constant qdot is Jdot qdot: central difference along q + s qdot."""
     rng = np.random.default_rng(3)
     eps = 1e-6
-    for q, qdot in zip(rng.uniform(-np.pi, np.pi, size=(30, 2)), rng.normal(0, 2, size=(30, 2))):
+    for q, qdot in zip(rng.uniform(-np.pi, np.pi, size=(30, 2)), rng.normal(0, 2, size=(30, 2)), strict=True):
         fd = (k2.jacobian(q + eps * qdot) @ qdot - k2.jacobian(q - eps * qdot) @ qdot) / (2 * eps)
         np.testing.assert_allclose(k2.jdot_qdot(q, qdot), fd, atol=1e-7)
 

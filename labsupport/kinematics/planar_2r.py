@@ -182,7 +182,9 @@ def sample_annulus(rng: np.random.Generator, arm: Planar2R = LAB_ARM, margin: fl
     """
     lo, hi = arm.reach_min + margin, arm.reach_max - margin
     if not lo < hi:
-        raise ValueError(f"margin={margin!r} leaves no room in the workspace annulus [{arm.reach_min}, {arm.reach_max}]")
+        raise ValueError(
+            f"margin={margin!r} leaves no room in the workspace annulus [{arm.reach_min}, {arm.reach_max}]"
+        )
     radius = rng.uniform(lo, hi)
     angle = rng.uniform(-np.pi, np.pi)
     return radius * np.array([np.cos(angle), np.sin(angle)])
