@@ -161,6 +161,17 @@ def round_trip(tmp_path):
         ),
         ("my-notebook_5_6_my-notebook.ipynb", "my-notebook", 5, False, 6, "my-notebook.ipynb", 0, "upload"),
         ("smithbob_1234_5_archive-3.tar.gz", "smithbob", 1234, False, 5, "archive-3.tar.gz", 3, "upload"),
+        # past -7 today's Canvas appends a UUID
+        (
+            "kim_1_9_p1-0b5e9f4c-6a1d-4c2e-9f3a-1b2c3d4e5f60.ipynb",
+            "kim",
+            1,
+            False,
+            9,
+            "p1-0b5e9f4c-6a1d-4c2e-9f3a-1b2c3d4e5f60.ipynb",
+            8,
+            "upload",
+        ),
         # anonymous grading: no name, an anonymous id instead of the user id
         (
             "LATE_anon_q7Kx2_50011_problem1_reaching.ipynb",
@@ -206,6 +217,8 @@ def test_anonymous_and_resubmission_details():
     assert f.base_name == "problem1_reaching.ipynb" and f.resubmission == 2
     assert f.prefix == "LATE_anon_q7Kx2_50011"
     assert canvas.parse_submission_name("a_1_2_lab-v2.ipynb").base_name == "lab-v2.ipynb"
+    uuid = canvas.parse_submission_name("a_1_2_p1-0b5e9f4c-6a1d-4c2e-9f3a-1b2c3d4e5f60.ipynb")
+    assert uuid.base_name == "p1.ipynb" and uuid.resubmission == 8
 
 
 def test_choose_notebook_prefers_the_problem_then_the_latest_upload():
@@ -220,6 +233,9 @@ def test_choose_notebook_prefers_the_problem_then_the_latest_upload():
         )
     ]
     assert canvas.choose_notebook(files, "problem1_reaching", "problem1").attachment_id == 13
+    # the latest upload wins, whatever its suffix says (past -7 Canvas appends a UUID)
+    later = canvas.parse_submission_name("kim_1_15_problem1_reaching-0b5e9f4c-6a1d-4c2e-9f3a-1b2c3d4e5f60.ipynb")
+    assert canvas.choose_notebook([*files, later], "problem1_reaching", "problem1") is later
     # named after the Problem only, or not at all: still a notebook, never the PDF
     assert canvas.choose_notebook(files[:1] + files[4:], "problem1_reaching", "problem1").attachment_id == 10
     assert canvas.choose_notebook(files[4:], "problem1_reaching", "problem1") is None
@@ -324,8 +340,8 @@ def test_report_lists_late_resubmissions_groups_and_scaling(round_trip):
     report = (out / "report.txt").read_text()
     assert result.late == ["García, Ana: garcíaana_LATE_1235_50002_problem1_reaching.ipynb"]
     assert result.resubmissions == [
-        "O'Hara, Sean: problem1_reaching-1.ipynb (upload 2 of that name)",
-        "Lee, Kim: problem1_reaching-2.ipynb (upload 3 of that name)",
+        "O'Hara, Sean: problem1_reaching-1.ipynb (Canvas's name for a re-upload of problem1_reaching.ipynb)",
+        "Lee, Kim: problem1_reaching-2.ipynb (Canvas's name for a re-upload of problem1_reaching.ipynb)",
     ]
     assert any("leekim_1238_50005_problem2_tracking.ipynb" in n for n in result.not_graded)
     assert any("oharasean_1236_50004_notes.pdf (not a notebook" in n for n in result.not_graded)

@@ -42,9 +42,10 @@ guides say the same in fewer words.
 
 Resubmissions (``app/models/attachment.rb``: ``handle_duplicates``,
 ``make_unique_filename``): a file uploaded into a student's submissions folder that already
-holds a file of the same name is renamed ``<stem>-1<ext>``, then ``-2``...; so
-``problem1_reaching-2.ipynb`` is the third upload of that name. (Students notice it too:
-https://github.com/IIC1253/IIC1253-2025-1/issues/34.)
+holds a file of the same name is renamed ``<stem>-1<ext>``, then ``-2``... up to ``-7``, after
+which a random UUID takes the number's place (older versions kept counting); so
+``problem1_reaching-2.ipynb`` is the third upload of that name. (Students notice it too: https://github.com/IIC1253/IIC1253-2025-1/issues/34.)
+Attachment ids grow with each upload, so the highest one is a student's latest file.
 
 *Re-upload Submissions* (``infer_comment_context_from_filename`` in ``app/models/assignment.rb``)
 splits each file name on ``_``, takes the first two all-digit parts as the user id and the
@@ -110,7 +111,11 @@ _TEXT_OR_URL = re.compile(
     r"^(?:(?P<name>.*?)_)??(?:(?P<late>LATE)_)?(?P<user>\d+|anon_[A-Za-z0-9]+)_(?P<kind>text|link)\.html$"
 )
 # Canvas's make_unique_filename: "<stem>-<n><ext>", ext as Canvas cuts it ("a.tar.gz" -> "a-1.tar.gz").
-_RESUBMISSION = re.compile(r"^(?P<stem>.+)-(?P<n>\d+)(?P<ext>(?:\.[A-Za-z][A-Za-z0-9]*)*(?:\.[A-Za-z0-9]*))$")
+# After -7, today's Canvas appends a random UUID instead of a number (older versions kept counting).
+_RESUBMISSION = re.compile(
+    r"^(?P<stem>.+)-(?P<n>\d+|[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12})"
+    r"(?P<ext>(?:\.[A-Za-z][A-Za-z0-9]*)*(?:\.[A-Za-z0-9]*))$"
+)
 _ASSIGNMENT_HEADER = re.compile(r"^(?P<title>.*)\s\((?P<id>\d+)\)$")
 _COMPUTED_HEADER = re.compile(
     "Current Score|Current Points|Current Grade|Final Score|Final Points|Final Grade|Override Score"
@@ -133,7 +138,7 @@ class SubmissionFile:
     late: bool  #: Canvas marked the submission LATE
     attachment_id: int | None  #: id of the uploaded file (None for text entries and URLs)
     original: str  #: the file's display name, resubmission suffix included
-    resubmission: int  #: n of Canvas's "-n" duplicate-name suffix (0 when absent)
+    resubmission: int  #: n of Canvas's "-n" duplicate-name suffix (0 when absent, 8 for its UUID suffix)
     kind: str = "upload"  #: "upload", "text" or "link"
 
     @property
@@ -177,7 +182,7 @@ def parse_submission_name(entry: str) -> SubmissionFile | None:
         late=m["late"] is not None,
         attachment_id=int(m["attachment"]) if kind == "upload" else None,
         original=original,
-        resubmission=int(suffix["n"]) if suffix else 0,
+        resubmission=(int(suffix["n"]) if suffix["n"].isdigit() else 8) if suffix else 0,
         kind=kind,
     )
 
@@ -238,13 +243,13 @@ def choose_notebook(files: list[SubmissionFile], stem: str, problem: str) -> Sub
 
     Preference: a notebook whose name holds the Problem's notebook name (``problem1_reaching``),
     else one whose name holds the Problem's name (``problem1``), else any notebook; among
-    equals, the highest resubmission number, then the highest attachment id (the latest upload).
+    equals, the highest attachment id (the latest upload, whatever Canvas's suffix says).
     """
     notebooks = [f for f in files if f.is_notebook]
     for key in (_plain(stem), _plain(problem), ""):
         named = [f for f in notebooks if key in _plain(f.base_name)]
         if named:
-            return max(named, key=lambda f: (f.resubmission, f.attachment_id or 0))
+            return max(named, key=lambda f: f.attachment_id or 0)
     return None
 
 
@@ -569,7 +574,7 @@ def _select_submissions(
         if pick.late:
             result.late.append(f"{who}: {pick.entry}")
         if pick.resubmission:
-            result.resubmissions.append(f"{who}: {pick.original} (upload {pick.resubmission + 1} of that name)")
+            result.resubmissions.append(f"{who}: {pick.original} (Canvas's name for a re-upload of {pick.base_name})")
         if _plain(stem) not in _plain(pick.base_name):
             result.notes.append(f"{who}: graded {pick.original}, whose name differs from {stem}.ipynb")
         if pick.name and unicodedata.normalize("NFC", pick.name) != _zip_name(gradebook.student_name(user)):
@@ -711,7 +716,7 @@ def report_text(gradebook: Gradebook, spec: dict, result: CanvasResult) -> str:
         ("Students with nothing graded (cell left as exported: empty unless Canvas had a grade)", result.missing),
         ("Graded but not scored (cell left as exported)", result.not_scored),
         ("Late submissions (graded; any late penalty is yours to apply)", result.late),
-        ("Resubmissions used (Canvas's -n suffix: the latest upload of that name)", result.resubmissions),
+        ("Resubmissions graded (Canvas renames a re-uploaded file name-1, name-2, ...)", result.resubmissions),
         ("Other files of students, not graded", result.not_graded),
         ("Notes", result.notes),
     ]
