@@ -44,8 +44,9 @@ Resubmissions (``app/models/attachment.rb``: ``handle_duplicates``,
 ``make_unique_filename``): a file uploaded into a student's submissions folder that already
 holds a file of the same name is renamed ``<stem>-1<ext>``, then ``-2``... up to ``-7``, after
 which a random UUID takes the number's place (older versions kept counting); so
-``problem1_reaching-2.ipynb`` is the third upload of that name. (Students notice it too: https://github.com/IIC1253/IIC1253-2025-1/issues/34.)
-Attachment ids grow with each upload, so the highest one is a student's latest file.
+``problem1_reaching-2.ipynb`` is the third upload of that name (students notice it too:
+https://github.com/IIC1253/IIC1253-2025-1/issues/34). Attachment ids grow with each upload, so
+the highest one is a student's latest file.
 
 *Re-upload Submissions* (``infer_comment_context_from_filename`` in ``app/models/assignment.rb``)
 splits each file name on ``_``, takes the first two all-digit parts as the user id and the
@@ -64,9 +65,10 @@ Gradebook export (``lib/gradebook_exporter.rb``) and import (``lib/gradebook_imp
   ``ID``) whose student columns end with ``Section``; it finds each student by ``ID`` first,
   then SIS ids, then name; it skips the Points Possible and Manual Posting rows and ignores
   read-only columns; it reads ``;`` or ``,`` as the separator and a decimal comma or point;
-* a blank cell means "no score", so a student with no submission keeps an empty cell (a 0
-  would be a grade); the Points Possible row is kept as exported, and a score is scaled to the
-  column's points possible when the Problem's checks add up to a different maximum.
+* a blank cell means "no score", so a student with no submission keeps the cell as exported
+  (empty unless Canvas already had a grade; never a 0, which would be a grade); the Points
+  Possible row is kept as exported, and a score is scaled to the column's points possible
+  when the Problem's checks add up to a different maximum.
 
 Community guides: https://community.canvaslms.com/t5/Instructor-Guide/How-do-I-import-grades-in-the-Gradebook/ta-p/807
 (importing), and on the export's read-only columns, which the import ignores,
