@@ -9,5 +9,6 @@ submission's reach: run it from a checkout of the course repository.
 ``sandbox``         the process that runs one submission and answers calls into it
 ``judge``           grades one submission through a sandbox
 ``batch``           grades a folder of submissions into a CSV and feedback files
+``canvas``          Canvas "Download Submissions" zip + gradebook export → graded gradebook to import
 ==================  ===================================================================
 """
