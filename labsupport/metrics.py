@@ -1,8 +1,10 @@
-r"""Performance measures: RMS error, cumulative effort, overshoot, settling time, and the
-closed-form second-order step response they are checked against."""
+r"""Performance measures: RMS error, cumulative effort, overshoot, settling time, the
+closed-form second-order step response they are checked against, and the measures of a run's
+:class:`labsupport.sim.Log` (position and orientation error, peak torque, saturation)."""
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
 
@@ -92,3 +94,72 @@ def second_order_error(t, e0, edot0, wn: float, zeta: float):
     c1 = (edot0 - s2 * e0) / (s1 - s2)
     c2 = e0 - c1
     return c1 * np.exp(s1 * t) + c2 * np.exp(s2 * t)
+
+
+# ---------------------------------------------------------------------------------------
+# Functions of a run's log (labsupport.sim.Log)
+# ---------------------------------------------------------------------------------------
+
+
+def rotation_error(xmat, quat_d, out=None) -> np.ndarray:
+    r"""Rotation error :math:`\log(R R_d^\top)` as a rotation vector [rad] (world frame), from the
+    orientation ``xmat`` (3x3 or 9 numbers, row-major) and the target quaternion ``quat_d``
+    (w, x, y, z), through quaternions as the lab computes it. ``out`` is an optional (3,) result.
+    """
+    quat, diff, conj = np.empty(4), np.empty(4), np.empty(4)
+    out = np.empty(3) if out is None else out
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(xmat, dtype=float).reshape(9))
+    mujoco.mju_negQuat(conj, np.asarray(quat_d, dtype=float))
+    mujoco.mju_mulQuat(diff, quat, conj)
+    mujoco.mju_quat2Vel(out, diff, 1.0)
+    return out
+
+
+def _after(log, after: float) -> np.ndarray:
+    """Rows of ``log`` logged at ``t >= after``."""
+    return log.t >= after
+
+
+def rms_position_error(log, after: float = 0.0) -> float:
+    r"""RMS of the site's position error norm over ``t >= after`` [m], from ``log.err``."""
+    return rms_norm(log.err[_after(log, after)])
+
+
+def orientation_error(log, quat_d) -> np.ndarray:
+    r"""(N, 3) rotation errors :math:`\log(R_k R_d^\top)` of the logged site orientations
+    ``log.ee_rot`` against the constant target orientation ``quat_d`` (w, x, y, z) [rad]."""
+    return np.array([rotation_error(rot, quat_d) for rot in log.ee_rot]).reshape(len(log.t), 3)
+
+
+def rms_orientation_error(log, quat_d, after: float = 0.0) -> float:
+    r"""RMS of the rotation-error angle over ``t >= after`` [rad] (see :func:`orientation_error`)."""
+    return rms_norm(orientation_error(log, quat_d)[_after(log, after)])
+
+
+def peak_torque(log, applied=None) -> np.ndarray:
+    r"""Largest :math:`|\tau|` of each actuator over the run: of the asked torque ``log.tau``,
+    or of ``applied`` (N, nu), the torque the actuators actually exerted, when given."""
+    return np.abs(log.tau if applied is None else applied).max(axis=0)
+
+
+def saturation(log, applied) -> np.ndarray:
+    """(N, nu) True where the actuators exerted another torque than the controller asked
+    (a force or command limit bound); ``applied`` is the exerted torque, e.g.
+    :func:`labsupport.actuators.servo_force` of the log."""
+    return ~np.isclose(applied, log.tau, rtol=1e-9, atol=1e-9)
+
+
+def saturation_report(log, applied, names=None) -> str:
+    """One sentence on where limits bound (empty when they never did): the share of the steps,
+    the first time, and the actuators (``names``, else their indices)."""
+    hits = saturation(log, applied)
+    if not hits.any():
+        return ""
+    names = [str(i) for i in range(hits.shape[1])] if names is None else list(names)
+    joints = [names[i] for i in range(hits.shape[1]) if hits[:, i].any()]
+    first = int(np.flatnonzero(hits.any(axis=1))[0])
+    return (
+        f"Torque or command limits were hit on {100 * hits.any(axis=1).mean():.1f} % of the steps "
+        f"(first at t = {log.t[first]:.3f} s; joints {', '.join(joints)}); the actuators applied "
+        "the clipped torque."
+    )

@@ -13,11 +13,14 @@ never slows the control loop down and a failed render loses no results.
 from __future__ import annotations
 
 import os
+from html import escape
 
+import IPython.display
+import mediapy
 import mujoco
 import numpy as np
 
-from labsupport.sim import site_positions
+from labsupport.sim import Log, site_positions
 
 #: Blue target trace and red end-effector trace, as in the lab.
 TARGET_RGBA = np.array([0.0, 0.2, 1.0, 1.0], dtype=np.float32)
@@ -52,9 +55,11 @@ def make_renderer(model: mujoco.MjModel, width: int = 320, height: int = 240) ->
     if width <= 0 or height <= 0:
         raise ValueError(f"width and height must be positive pixels, got {width}x{height}")
     if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
-        raise ValueError(f"{width}x{height} is larger than the model's offscreen buffer "
-                         f"({model.vis.global_.offwidth}x{model.vis.global_.offheight}); "
-                         "pick a smaller size or raise <visual><global offwidth offheight>")
+        raise ValueError(
+            f"{width}x{height} is larger than the model's offscreen buffer "
+            f"({model.vis.global_.offwidth}x{model.vis.global_.offheight}); "
+            "pick a smaller size or raise <visual><global offwidth offheight>"
+        )
     backend = os.environ.get("MUJOCO_GL")
     if not backend:
         raise RenderingUnavailable(f"No OpenGL backend for MuJoCo ({gl.last_choice}). {INSTALL_HINT}")
@@ -63,7 +68,8 @@ def make_renderer(model: mujoco.MjModel, width: int = 320, height: int = 240) ->
     except Exception as err:  # EGL/OSMesa/PyOpenGL raise many types; all mean "no context"
         raise RenderingUnavailable(
             f"MuJoCo could not open an offscreen OpenGL context with MUJOCO_GL={backend} "
-            f"({type(err).__name__}: {err}). {INSTALL_HINT}") from err
+            f"({type(err).__name__}: {err}). {INSTALL_HINT}"
+        ) from err
 
 
 def add_trace(scene: mujoco.MjvScene, points: np.ndarray, width: float, rgba: np.ndarray) -> int:
@@ -71,7 +77,7 @@ def add_trace(scene: mujoco.MjvScene, points: np.ndarray, width: float, rgba: np
     ``scene``; returns how many fit. (Lines, not the lab's capsules: a software renderer
     draws hundreds of capsules several times slower than the robot itself.)"""
     added = 0
-    for p0, p1 in zip(points[:-1], points[1:]):
+    for p0, p1 in zip(points[:-1], points[1:], strict=False):
         if scene.ngeom >= scene.maxgeom:
             break
         geom = scene.geoms[scene.ngeom]
@@ -82,41 +88,61 @@ def add_trace(scene: mujoco.MjvScene, points: np.ndarray, width: float, rgba: np
     return added
 
 
-def render_run(model: mujoco.MjModel, run, *, fps: float = 12, width: int = 320, height: int = 240,
-               camera: str | int = "lab", trace_step: float = 0.04, progress: bool = True,
-               site: str = "attachment_site", target_body: str = "target") -> np.ndarray:
-    """Frames (F, height, width, 3) replaying ``run`` (a :class:`labsupport.ur5e.Ur5eRun`).
+def render_run(
+    model: mujoco.MjModel,
+    log: Log,
+    *,
+    target_quat=None,
+    fps: float = 12,
+    width: int = 320,
+    height: int = 240,
+    camera: str | int = "lab",
+    trace_step: float = 0.04,
+    progress: bool = True,
+    site: str = "attachment_site",
+    target_body: str = "target",
+) -> np.ndarray:
+    """Frames (F, height, width, 3) replaying a run's :class:`labsupport.sim.Log`.
 
-    Each frame shows the robot at the logged joint angles, the mocap target, and the traces
-    (every ``trace_step`` seconds) of the target (blue) and of the end effector (red) up to
-    that instant. Shadows and reflections are off: software OpenGL renders several times
-    faster without them. A progress bar (tqdm) shows while ``progress`` is true; in a
-    notebook it is erased when the video is done.
+    Each frame shows the robot at the logged joint angles, the mocap target at the logged
+    reference ``log.ref`` (held at ``target_quat``, w x y z, when given), and the traces (every
+    ``trace_step`` seconds) of the reference (blue) and of the end effector (red) up to that
+    instant. Shadows and reflections are off: software OpenGL renders several times faster
+    without them. A progress bar (tqdm) shows while ``progress`` is true; in a notebook it is
+    erased when the video is done.
+
+    Raises:
+        ValueError: ``fps`` outside (0, 60], or a log without a 3-D reference.
     """
     if not (np.isfinite(fps) and 0 < fps <= 60):
         raise ValueError(f"fps must be in (0, 60], got {fps!r}")
-    dt = run.timestep
-    n = len(run.t)
+    if log.ref.shape[1:] != (3,):
+        raise ValueError(
+            f"the log's reference must be 3-D positions to draw a target, got shape {log.ref.shape}; "
+            "simulate with site= and a 3-D reference="
+        )
+    dt = model.opt.timestep
+    n = len(log.t)
     duration = n * dt
     frame_steps = np.minimum((np.arange(int(duration * fps)) / fps / dt).round().astype(int), n - 1)
     stride = max(1, int(round(trace_step / dt)))
     trail_idx = np.arange(0, n, stride)
-    ee_trail = site_positions(model, run.q[trail_idx], site)
-    target_trail = run.target[trail_idx]
+    ee_trail = site_positions(model, log.q[trail_idx], site)
+    target_trail = log.ref[trail_idx]
 
     renderer = make_renderer(model, width, height)
     data = mujoco.MjData(model)
     body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, target_body)
     mocap = model.body_mocapid[body] if body >= 0 else -1
-    if mocap >= 0:
-        data.mocap_quat[mocap] = run.target_quat
+    if mocap >= 0 and target_quat is not None:
+        data.mocap_quat[mocap] = target_quat
     frames = np.empty((len(frame_steps), height, width, 3), dtype=np.uint8)
     bar = _progress_bar(len(frame_steps)) if progress else None
     try:
         for i, k in enumerate(frame_steps):
-            data.qpos[:] = run.q[k]
+            data.qpos[:] = log.q[k]
             if mocap >= 0:
-                data.mocap_pos[mocap] = run.target[k]
+                data.mocap_pos[mocap] = log.ref[k]
             mujoco.mj_forward(model, data)
             renderer.update_scene(data, camera=camera)
             renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
@@ -145,6 +171,7 @@ def _progress_bar(total: int):
     try:
         from IPython import get_ipython
         from IPython.display import HTML, display
+
         in_kernel = get_ipython() is not None and hasattr(get_ipython(), "kernel")
     except ImportError:
         in_kernel = False
@@ -169,31 +196,61 @@ def _progress_bar(total: int):
             self.handle.update(HTML(""))
 
     out = _DisplayFile()
-    bar = tqdm(total=total, desc="rendering", unit="frame", leave=False, file=out, ascii=False,
-               mininterval=0.5, ncols=80)
+    bar = tqdm(
+        total=total, desc="rendering", unit="frame", leave=False, file=out, ascii=False, mininterval=0.5, ncols=80
+    )
     close = bar.close
 
     def close_and_clear():
         close()
         out.clear()
+
     bar.close = close_and_clear
     return bar
 
 
-def show_video(frames: np.ndarray, fps: float, title: str | None = None, qp: int = 30) -> None:
-    """Show frames inline as an H.264 MP4 (mediapy); ``qp`` trades size for quality."""
-    import mediapy
+def video_html(
+    frames: np.ndarray, fps: float, title: str | None = None, description: str | None = None, qp: int = 30
+) -> str:
+    """HTML showing ``frames`` as an H.264 MP4 (mediapy); ``qp`` trades size for quality.
 
-    mediapy.show_video(frames, fps=fps, title=title, qp=qp)
+    ``description`` is the video's text alternative: the caption under it, its accessible
+    name (``aria-label``), and what a browser that cannot play it shows instead.
+    """
+    frames = np.asarray(frames)
+    data = mediapy.compress_video(frames, fps=fps, qp=qp)
+    html = mediapy.html_from_compressed_video(data, frames.shape[2], frames.shape[1], title=title)
+    if description:
+        text = escape(description)
+        html = html.replace("<video ", f'<video aria-label="{text}" ', 1)
+        html = html.replace("This browser does not support the video tag.", text, 1)
+        html = f"<figure>{html}<figcaption>{text}</figcaption></figure>"
+    return html
 
 
-def show_run_video(model: mujoco.MjModel, run, *, title: str | None = None, fps: float = 12,
-                   **options) -> np.ndarray | None:
-    """Render ``run`` and show it; without a working OpenGL backend print why and return None."""
+def show_video(
+    frames: np.ndarray, fps: float, title: str | None = None, description: str | None = None, qp: int = 30
+) -> None:
+    """Show frames inline as an MP4 video with its text alternative (see :func:`video_html`)."""
+    IPython.display.display(IPython.display.HTML(video_html(frames, fps, title, description, qp)))
+
+
+def show_run_video(
+    model: mujoco.MjModel,
+    log: Log,
+    *,
+    title: str | None = None,
+    description: str | None = None,
+    fps: float = 12,
+    **options,
+) -> np.ndarray | None:
+    """Render ``log`` (see :func:`render_run`, which takes the same ``options``) and show it with
+    its text alternative ``description``; without a working OpenGL backend print why (and the
+    description) and return None."""
     try:
-        frames = render_run(model, run, fps=fps, **options)
+        frames = render_run(model, log, fps=fps, **options)
     except RenderingUnavailable as err:
-        print(f"(No video: {err})")
+        print(f"(No video: {err})" + (f" {description}" if description else ""))
         return None
-    show_video(frames, fps, title)
+    show_video(frames, fps, title, description)
     return frames

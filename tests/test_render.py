@@ -9,7 +9,6 @@ import os
 import subprocess
 import sys
 
-import labsupport  # noqa: F401
 import numpy as np
 import pytest
 
@@ -19,17 +18,26 @@ SCRIPT = r"""
 import json, os, sys
 import numpy as np
 import labsupport
-from labsupport import gl, render, ur5e
-from labsupport.controllers.ur5e import LabController
+from labsupport import gl, render, trajectories, ur5e
+from labsupport.actuators import servo_actuation
+from labsupport.controllers.ur5e import LAB_GAINS, PoseArrays, lab_torque
+from labsupport.sim import simulate
 model, data = ur5e.load_ur5e()
-run = ur5e.run(model, data, LabController(), ur5e.CircleTask(duration=1.0))
+quat_d = np.array(ur5e.HOME_QUAT)
+ref = trajectories.sample(lambda t: trajectories.circle_3d(t, (-0.1, 0.5, 0.6), 0.1, (1, 1, 1), 0.25),
+                          model.opt.timestep, 1.0)
+site, arrays = model.site(ur5e.SITE).id, PoseArrays.for_model(model)
+def controller(model, data):
+    return lab_torque(model, data, site, ref.at(data.time).pos, quat_d, LAB_GAINS, arrays)
+log = simulate(model, data, controller, 1.0, keyframe=ur5e.HOME, site=ur5e.SITE, reference=ref,
+               actuation=servo_actuation(model))
 result = {"backend": os.environ.get("MUJOCO_GL"), "choice": gl.last_choice}
 try:
-    frames = render.render_run(model, run, fps=5, progress=False)
+    frames = render.render_run(model, log, target_quat=quat_d, fps=5, progress=False)
     np.save(sys.argv[1], frames)
 except render.RenderingUnavailable as err:
     result["error"] = str(err)
-shown = render.show_run_video(model, run, fps=5, progress=False) if "error" in result else "skipped"
+shown = render.show_run_video(model, log, fps=5, progress=False) if "error" in result else "skipped"
 result["show_returned_none"] = shown is None
 print(json.dumps(result))
 """
@@ -38,8 +46,14 @@ print(json.dumps(result))
 def _render_in_subprocess(tmp_path, **env):
     environment = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
     environment.update(env)
-    out = subprocess.run([sys.executable, "-c", SCRIPT, str(tmp_path / "frames.npy")], env=environment,
-                         cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    out = subprocess.run(
+        [sys.executable, "-c", SCRIPT, str(tmp_path / "frames.npy")],
+        env=environment,
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert out.returncode == 0, out.stderr
     result = json.loads(out.stdout.strip().splitlines()[-1])
     frames = np.load(tmp_path / "frames.npy") if (tmp_path / "frames.npy").exists() else None
@@ -52,7 +66,7 @@ def _assert_real_frames(frames):
         assert frame.std() > 10, "a frame is (nearly) uniform"
         assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 100
     # the arm moves: consecutive frames differ, and the first and last clearly
-    assert all(np.any(a != b) for a, b in zip(frames[:-1], frames[1:]))
+    assert all(np.any(a != b) for a, b in zip(frames[:-1], frames[1:], strict=True))
     assert np.mean(np.abs(frames[0].astype(int) - frames[-1].astype(int))) > 0.5
 
 
@@ -75,8 +89,9 @@ def test_falls_back_to_osmesa_when_egl_fails(tmp_path):
 
 def test_no_working_backend_gives_a_clear_message(tmp_path):
     # EGL forced, but no EGL vendor library can be found
-    result, frames = _render_in_subprocess(tmp_path, MUJOCO_GL="egl",
-                                           __EGL_VENDOR_LIBRARY_FILENAMES=str(tmp_path / "none.json"))
+    result, frames = _render_in_subprocess(
+        tmp_path, MUJOCO_GL="egl", __EGL_VENDOR_LIBRARY_FILENAMES=str(tmp_path / "none.json")
+    )
     assert frames is None
     message = result["error"]
     assert "MUJOCO_GL=egl" in message and "apt-get install" in message and "libosmesa6" in message
@@ -96,7 +111,7 @@ def test_select_backend_reports_when_nothing_works(monkeypatch):
     monkeypatch.delenv("MUJOCO_GL", raising=False)
     monkeypatch.setattr(gl, "egl_works", lambda: False)
     monkeypatch.setattr(gl, "osmesa_works", lambda: False)
-    monkeypatch.delitem(sys.modules, "mujoco", raising=False)   # restored after the test
+    monkeypatch.delitem(sys.modules, "mujoco", raising=False)  # restored after the test
     monkeypatch.setattr(gl, "last_choice", gl.last_choice)
     assert gl.select_backend() is None
     assert "no OpenGL backend works" in gl.last_choice
@@ -118,3 +133,24 @@ def test_nvidia_vendor_file_is_written_only_with_a_gpu(tmp_path, monkeypatch):
     monkeypatch.setattr(gl, "_has_nvidia_gpu", lambda: True)
     assert gl.install_nvidia_egl_vendor_file(str(path)) is True
     assert json.loads(path.read_text())["ICD"]["library_path"] == "libEGL_nvidia.so.0"
+
+
+def test_video_has_a_text_alternative():
+    frames = np.random.default_rng(0).integers(0, 255, (6, 48, 64, 3), dtype=np.uint8)
+    html = render.video_html(frames, fps=6, title="a run", description="The arm <moves> round the circle.")
+    assert '<video aria-label="The arm &lt;moves&gt; round the circle."' in html
+    assert "<figcaption>The arm &lt;moves&gt; round the circle.</figcaption>" in html
+    assert "does not support the video tag" not in html
+    assert 'type="video/mp4"' in html and 'width="64" height="48"' in html
+
+
+def test_render_needs_a_3d_reference():
+    import mujoco
+
+    from labsupport.sim import Log
+
+    model = mujoco.MjModel.from_xml_string("<mujoco/>")
+    empty = np.empty((2, 0))
+    log = Log(np.zeros(2), empty, empty, empty, empty, empty, np.empty((2, 0, 0)), empty, empty)
+    with pytest.raises(ValueError, match="3-D positions"):
+        render.render_run(model, log)

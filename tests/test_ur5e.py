@@ -1,25 +1,34 @@
-"""Task 4: the UR5e model, its servos, the operational-space controllers and the loop."""
+"""Task 4: the UR5e model, its servos as the loop's actuation, the two laws and their runs."""
 
 import subprocess
 import sys
 
-import labsupport  # noqa: F401  (chooses the GL backend before mujoco is imported)
 import mujoco
 import numpy as np
 import pytest
 
-from labsupport import ur5e
-from labsupport.controllers.ur5e import (LAB_GAINS, LabController, OperationalSpaceController,
-                                         PoseGains, conditioned_task_solve, lab_osc_torque, minv,
-                                         osc_torque, pose_error, posture_torque,
-                                         tracking_acceleration)
+from labsupport import metrics, trajectories, ur5e
+from labsupport.actuators import Servo, implicit_damping, servo_actuation, servo_ctrl, servo_force
+from labsupport.controllers.ur5e import LAB_GAINS, PoseArrays, PoseGains, lab_torque, pose_error, tracking_torque
 from labsupport.dynamics import mass_matrix, site_jacobian, site_jdot_qdot, task_space_inertia
-from labsupport.sim import SimulationDiverged
+from labsupport.sim import simulate
+
+QUAT_D = np.array(ur5e.HOME_QUAT)
 
 
 @pytest.fixture(scope="module")
 def ur():
     return ur5e.load_ur5e()
+
+
+@pytest.fixture(scope="module")
+def circle(ur):
+    model, _ = ur
+
+    def reference(t):
+        return trajectories.circle_3d(t, (-0.1, 0.5, 0.6), 0.1, (1, 1, 1), 0.25)
+
+    return trajectories.sample(reference, model.opt.timestep, 8.0)
 
 
 def _random_state(model, data, rng, speed=1.0):
@@ -33,16 +42,60 @@ def _random_state(model, data, rng, speed=1.0):
             return
 
 
+def _run_lab(model, data, reference, **stepping):
+    site, arrays = model.site(ur5e.SITE).id, PoseArrays.for_model(model)
+
+    def controller(model, data):
+        return lab_torque(model, data, site, reference.at(data.time).pos, QUAT_D, LAB_GAINS, arrays)
+
+    return simulate(
+        model,
+        data,
+        controller,
+        8.0,
+        keyframe=ur5e.HOME,
+        site=ur5e.SITE,
+        reference=reference,
+        actuation=servo_actuation(model),
+        **stepping,
+    )
+
+
+def _run_tracking(model, data, reference, duration=8.0, compensate=True, jdot=True):
+    site, arrays = model.site(ur5e.SITE).id, PoseArrays.for_model(model)
+    inertia = implicit_damping(Servo.from_model(model), model.opt.timestep) * compensate
+
+    def controller(model, data):
+        ref = reference.at(data.time)
+        return tracking_torque(model, data, site, ref.pos, ref.vel, ref.acc, QUAT_D, LAB_GAINS, inertia, arrays, jdot)
+
+    return simulate(
+        model,
+        data,
+        controller,
+        duration,
+        keyframe=ur5e.HOME,
+        site=ur5e.SITE,
+        reference=reference,
+        actuation=servo_actuation(model),
+        split_step=True,
+    )
+
+
 # ---------------------------------------------------------------------------------------
 # Model
 # ---------------------------------------------------------------------------------------
 
+
 def test_loads_from_any_working_directory(tmp_path):
-    code = ("import labsupport; from labsupport.ur5e import load_ur5e; m, d = load_ur5e(); "
-            "print(m.nq, m.nu, m.nmocap, m.body('target').mocapid[0], m.site('attachment_site').id, "
-            "m.camera('lab').id, round(float(d.site('attachment_site').xpos[2]), 4))")
-    out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True,
-                         check=True, timeout=120)
+    code = (
+        "import labsupport; from labsupport.ur5e import load_ur5e; m, d = load_ur5e(); "
+        "print(m.nq, m.nu, m.nmocap, m.body('target').mocapid[0], m.site('attachment_site').id, "
+        "m.camera('lab').id, round(float(d.site('attachment_site').xpos[2]), 4))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, check=True, timeout=120
+    )
     assert out.stdout.split() == ["6", "6", "1", "0", "0", "0", "0.488"]
 
 
@@ -51,10 +104,20 @@ def test_robot_is_the_unmodified_menagerie_ur5e(ur):
 
     model, _ = ur
     menagerie = mujoco.MjModel.from_xml_path(str(ur5e_xml()))
-    for name in ("body_mass", "body_inertia", "dof_armature", "actuator_gainprm", "actuator_biasprm",
-                 "actuator_forcerange", "actuator_ctrlrange", "jnt_range", "key_qpos"):
-        np.testing.assert_array_equal(getattr(model, name)[: getattr(menagerie, name).shape[0]],
-                                      getattr(menagerie, name), err_msg=name)
+    for name in (
+        "body_mass",
+        "body_inertia",
+        "dof_armature",
+        "actuator_gainprm",
+        "actuator_biasprm",
+        "actuator_forcerange",
+        "actuator_ctrlrange",
+        "jnt_range",
+        "key_qpos",
+    ):
+        np.testing.assert_array_equal(
+            getattr(model, name)[: getattr(menagerie, name).shape[0]], getattr(menagerie, name), err_msg=name
+        )
     assert model.opt.integrator == menagerie.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     assert model.opt.timestep == menagerie.opt.timestep
 
@@ -67,9 +130,22 @@ def test_home_orientation_is_the_target_orientation(ur):
     np.testing.assert_allclose(data.mocap_quat[0], ur5e.HOME_QUAT)
 
 
+def test_shoulder_is_the_shoulder_lift_axis_and_the_reach_bounds_the_site(ur):
+    model, _ = ur
+    shoulder = ur5e.shoulder(model)
+    assert abs(shoulder[2] - 0.163) < 1e-3  # the UR5e's shoulder height
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(2)
+    for _ in range(200):
+        data.qpos[:] = rng.uniform(-np.pi, np.pi, model.nq)
+        mujoco.mj_kinematics(model, data)
+        assert np.linalg.norm(data.site(ur5e.SITE).xpos - shoulder) <= ur5e.REACH
+
+
 # ---------------------------------------------------------------------------------------
 # Dynamics: Lambda, the servo, the implicit damping
 # ---------------------------------------------------------------------------------------
+
 
 def test_task_inertia_equals_m_j_inverse(ur):
     """J^T Lambda = M J^-1 for the square Jacobian, at random non-singular configurations."""
@@ -84,243 +160,273 @@ def test_task_inertia_equals_m_j_inverse(ur):
             continue
         lam = task_space_inertia(model, data, J)
         M = mass_matrix(model, data)
-        m_jinv = np.linalg.solve(J.T, M.T).T          # M J^-1, computed the other way round
+        m_jinv = np.linalg.solve(J.T, M.T).T  # M J^-1, computed the other way round
         np.testing.assert_allclose(J.T @ lam, m_jinv, rtol=1e-7, atol=1e-9 * np.abs(m_jinv).max())
         checked += 1
 
 
-def test_servo_inversion_gives_the_commanded_torque(ur):
+def test_servo_inversion_round_trip(ur):
+    """servo_force(servo_ctrl(tau)) == tau away from the clamps, and MuJoCo's actuator force agrees."""
     model, _ = ur
     data = mujoco.MjData(model)
-    servo = ur5e.Servo.from_model(model)
+    servo = Servo.from_model(model)
     rng = np.random.default_rng(7)
     for _ in range(20):
         _random_state(model, data, rng, speed=2.0)
         tau = rng.uniform(0.8 * servo.force_lo, 0.8 * servo.force_hi)
-        data.ctrl[:] = ur5e.servo_ctrl(servo, data.qpos, data.qvel, tau)
-        assert np.all((data.ctrl > servo.ctrl_lo) & (data.ctrl < servo.ctrl_hi))
+        ctrl = servo_ctrl(servo, data.qpos, data.qvel, tau)
+        assert np.all((ctrl > servo.ctrl_lo) & (ctrl < servo.ctrl_hi))
+        np.testing.assert_allclose(servo_force(servo, data.qpos, data.qvel, ctrl), tau, atol=1e-9, rtol=0)
+        data.ctrl[:] = ctrl
         mujoco.mj_forward(model, data)
         np.testing.assert_allclose(data.qfrc_actuator, tau, atol=1e-9, rtol=0)
-        np.testing.assert_allclose(ur5e.servo_force(servo, data.qpos, data.qvel, data.ctrl), tau, atol=1e-9)
 
 
 def test_servo_force_is_clamped_to_forcerange(ur):
     model, _ = ur
     data = mujoco.MjData(model)
-    servo = ur5e.Servo.from_model(model)
+    servo = Servo.from_model(model)
     mujoco.mj_resetDataKeyframe(model, data, 0)
-    tau = 3 * servo.force_hi
-    data.ctrl[:] = ur5e.servo_ctrl(servo, data.qpos, data.qvel, tau)
+    np.testing.assert_array_equal(servo.force_hi, [150, 150, 150, 28, 28, 28])
+    data.ctrl[:] = servo_ctrl(servo, data.qpos, data.qvel, 3 * servo.force_hi)
     mujoco.mj_forward(model, data)
     np.testing.assert_allclose(data.qfrc_actuator, servo.force_hi)
-    np.testing.assert_allclose(ur5e.servo_force(servo, data.qpos, data.qvel, data.ctrl), servo.force_hi)
+    np.testing.assert_allclose(servo_force(servo, data.qpos, data.qvel, data.ctrl), servo.force_hi)
+
+
+def test_servo_command_is_clamped_to_ctrlrange(ur):
+    model, _ = ur
+    servo = Servo.from_model(model)
+    q = np.zeros(6)
+    ctrl = servo_ctrl(servo, q, np.zeros(6), 1e6 * servo.kp)  # asks for u = q + 1e6 rad
+    np.testing.assert_array_equal(ctrl, servo.ctrl_hi)
+
+
+def test_servo_rejects_torque_motors():
+    model = mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body><joint name='j'/><geom size='.1'/></body></worldbody>"
+        "<actuator><motor joint='j'/></actuator></mujoco>"
+    )
+    with pytest.raises(ValueError, match="not position servos"):
+        Servo.from_model(model)
 
 
 def test_implicit_servo_damping_adds_dt_kv_to_the_inertia(ur):
-    """One implicitfast step solves (M + dt Kv) qdd = tau - h: what the new controller compensates."""
+    """One implicitfast step solves (M + dt Kv) qdd = tau - h: what the tracking law compensates."""
     model, _ = ur
     data = mujoco.MjData(model)
-    servo = ur5e.Servo.from_model(model)
+    servo = Servo.from_model(model)
     rng = np.random.default_rng(11)
     dt = model.opt.timestep
+    np.testing.assert_allclose(implicit_damping(servo, dt), [0.8, 0.8, 0.8, 0.2, 0.2, 0.2])
     for _ in range(5):
         _random_state(model, data, rng)
         tau = rng.uniform(0.5 * servo.force_lo, 0.5 * servo.force_hi)
-        data.ctrl[:] = ur5e.servo_ctrl(servo, data.qpos, data.qvel, tau)
+        data.ctrl[:] = servo_ctrl(servo, data.qpos, data.qvel, tau)
         mujoco.mj_forward(model, data)
         M, h, v0 = mass_matrix(model, data), data.qfrc_bias.copy(), data.qvel.copy()
         mujoco.mj_step(model, data)
         qdd = (data.qvel - v0) / dt
-        expected = np.linalg.solve(M + np.diag(ur5e.implicit_damping(servo, dt)), tau - h)
+        expected = np.linalg.solve(M + np.diag(implicit_damping(servo, dt)), tau - h)
         np.testing.assert_allclose(qdd, expected, rtol=1e-8, atol=1e-8)
         assert np.linalg.norm(qdd - np.linalg.solve(M, tau - h)) > 1e-3 * np.linalg.norm(qdd)
 
 
-def test_split_step_equals_mj_step(ur):
-    """The loop's mj_step1 / control / mj_step2 advances exactly as mj_step."""
-    model, _ = ur
-    a, b = mujoco.MjData(model), mujoco.MjData(model)
-    for d in (a, b):
-        mujoco.mj_resetDataKeyframe(model, d, 0)
-        d.ctrl[:] = d.qpos + 0.05
-    for _ in range(200):
-        mujoco.mj_step(model, a)
-        mujoco.mj_step1(model, b)
-        mujoco.mj_step2(model, b)
-    np.testing.assert_array_equal(a.qpos, b.qpos)
-    np.testing.assert_array_equal(a.qvel, b.qvel)
+def test_the_loop_commands_the_servos_with_the_one_inversion(ur, circle):
+    model, data = ur
+    log = _run_tracking(model, data, circle, duration=0.2)
+    servo = Servo.from_model(model)
+    np.testing.assert_array_equal(log.ctrl, servo_ctrl(servo, log.q, log.qdot, log.tau))
+    np.testing.assert_allclose(servo_force(servo, log.q, log.qdot, log.ctrl), log.tau, atol=1e-9)
 
 
 # ---------------------------------------------------------------------------------------
-# Controllers: the in-place versions compute the plain-array laws
+# The laws, against their formulas computed independently (dense M, explicit inverses)
 # ---------------------------------------------------------------------------------------
 
-def _bound(controller, model, data, task):
-    n = int(round(task.duration / model.opt.timestep))
-    ref = task.reference(np.arange(n) * model.opt.timestep)
-    controller.bind(model, data, ref, task.unit_quat())
-    return ref
 
-
-def test_lab_controller_matches_the_lab_formula(ur):
+def test_pose_error_is_position_difference_and_rotation_vector(ur):
     model, _ = ur
     data = mujoco.MjData(model)
-    task = ur5e.CircleTask(duration=0.1)
     mujoco.mj_resetDataKeyframe(model, data, 0)
-    controller = LabController()
-    ref = _bound(controller, model, data, task)
+    mujoco.mj_forward(model, data)
+    site = model.site(ur5e.SITE).id
+    x_d = data.site_xpos[site] + [0.01, -0.02, 0.03]
+    angle, axis = 0.3, np.array([1.0, 2.0, 2.0]) / 3.0
+    turn, quat_site, quat_d = np.empty(4), np.empty(4), np.empty(4)
+    mujoco.mju_axisAngle2Quat(turn, axis, -angle)
+    mujoco.mju_mat2Quat(quat_site, data.site_xmat[site])
+    mujoco.mju_mulQuat(quat_d, turn, quat_site)  # R_d = Rot(axis, -angle) R
+    e = pose_error(data, site, x_d, quat_d, out=np.empty(6))
+    np.testing.assert_allclose(e[:3], [-0.01, 0.02, -0.03], atol=1e-12)
+    np.testing.assert_allclose(e[3:], angle * axis, atol=1e-12)  # log(R R_d^T) = +angle about axis
+
+
+def test_lab_law_is_the_lab_formula(ur, circle):
+    model, _ = ur
+    data = mujoco.MjData(model)
+    site, arrays = model.site(ur5e.SITE).id, PoseArrays.for_model(model)
     rng = np.random.default_rng(3)
     for k in (0, 17, 49):
         _random_state(model, data, rng)
-        tau = controller.update(k).copy()
-        e = pose_error(data.site("attachment_site").xpos, data.site("attachment_site").xmat,
-                       ref.pos[k], task.unit_quat())
-        J = site_jacobian(model, data, "attachment_site")
-        expected = lab_osc_torque(J, minv(model, data), e, data.qvel, data.qfrc_bias, LAB_GAINS)
-        np.testing.assert_allclose(controller.error, e, atol=1e-12)
-        np.testing.assert_allclose(tau, expected, rtol=1e-9, atol=1e-9)
-        # the lab's own formula, with the pseudo-inverse
-        lam = np.linalg.pinv(J @ minv(model, data) @ J.T)
-        lab = J.T @ lam @ (-LAB_GAINS.kp * e - LAB_GAINS.kd * (J @ data.qvel)) + data.qfrc_bias
-        np.testing.assert_allclose(tau, lab, rtol=1e-7, atol=1e-7)
+        tau = lab_torque(model, data, site, circle.pos[k], QUAT_D, LAB_GAINS, arrays).copy()
+        e = pose_error(data, site, circle.pos[k], QUAT_D, out=np.empty(6))
+        J, M = site_jacobian(model, data, site), mass_matrix(model, data)
+        lam = np.linalg.inv(J @ np.linalg.inv(M) @ J.T)
+        expected = J.T @ lam @ (-LAB_GAINS.kp * e - LAB_GAINS.kd * (J @ data.qvel)) + data.qfrc_bias
+        np.testing.assert_allclose(tau, expected, rtol=1e-7, atol=1e-7)
 
 
-def test_operational_space_controller_matches_its_formula(ur):
+def test_lab_law_applies_no_torque_on_zeroed_data(ur, circle):
+    """The lab's first step sees MuJoCo's all-zero data; the pseudo-inverse then gives tau = 0."""
     model, _ = ur
     data = mujoco.MjData(model)
-    task = ur5e.CircleTask(duration=0.1)
-    mujoco.mj_resetDataKeyframe(model, data, 0)
-    q_rest = data.qpos.copy()
-    controller = OperationalSpaceController(posture_stiffness=10.0, pivot_floor=1e-3)
-    ref = _bound(controller, model, data, task)
-    servo = ur5e.Servo.from_model(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)  # no mj_forward: derived data zero
+    tau = lab_torque(
+        model, data, model.site(ur5e.SITE).id, circle.pos[0], QUAT_D, LAB_GAINS, PoseArrays.for_model(model)
+    )
+    np.testing.assert_array_equal(tau, np.zeros(6))
+
+
+def test_tracking_law_is_its_formula(ur, circle):
+    model, _ = ur
+    data = mujoco.MjData(model)
+    site, arrays = model.site(ur5e.SITE).id, PoseArrays.for_model(model)
+    dt_kv = implicit_damping(Servo.from_model(model), model.opt.timestep)
     rng = np.random.default_rng(5)
     for k in (0, 23, 49):
         _random_state(model, data, rng)
-        tau = controller.update(k).copy()
-        site = data.site("attachment_site")
-        e = pose_error(site.xpos, site.xmat, ref.pos[k], task.unit_quat())
-        J = site_jacobian(model, data, "attachment_site")
-        a = tracking_acceleration(e, J @ data.qvel, np.r_[ref.vel[k], 0, 0, 0], np.r_[ref.acc[k], 0, 0, 0],
-                                  site_jdot_qdot(model, data, "attachment_site"), LAB_GAINS)
-        tau0 = posture_torque(data.qpos, data.qvel, q_rest, 10.0, 2 * np.sqrt(10.0))
-        expected = osc_torque(J, minv(model, data), a, data.qfrc_bias, tau0, 1e-3,
-                              ur5e.implicit_damping(servo, model.opt.timestep))
-        np.testing.assert_allclose(tau, expected, rtol=1e-9, atol=1e-9)
+        tau = tracking_torque(
+            model, data, site, circle.pos[k], circle.vel[k], circle.acc[k], QUAT_D, LAB_GAINS, dt_kv, arrays
+        ).copy()
+        e = pose_error(data, site, circle.pos[k], QUAT_D, out=np.empty(6))
+        J, M, h = site_jacobian(model, data, site), mass_matrix(model, data), data.qfrc_bias
+        xdot_d, xddot_d = np.r_[circle.vel[k], 0, 0, 0], np.r_[circle.acc[k], 0, 0, 0]
+        a = xddot_d - LAB_GAINS.kd * (J @ data.qvel - xdot_d) - LAB_GAINS.kp * e - site_jdot_qdot(model, data, site)
+        tau_r = J.T @ np.linalg.inv(J @ np.linalg.inv(M) @ J.T) @ a + h
+        expected = tau_r + dt_kv * np.linalg.solve(M, tau_r - h)
+        np.testing.assert_allclose(tau, expected, rtol=1e-7, atol=1e-7)
 
 
-def test_posture_acts_only_in_the_null_space(ur):
-    """For a non-singular 6-D task the posture torque changes nothing the task can see."""
+def test_tracking_law_gives_the_asked_task_acceleration_through_the_implicit_step(ur):
+    """After one implicitfast step the site accelerates by J qdd + Jdot qdot = xddot_d - Kd(.) - Kp e."""
     model, _ = ur
     data = mujoco.MjData(model)
-    rng = np.random.default_rng(9)
-    _random_state(model, data, rng)
-    J, Minv = site_jacobian(model, data, "attachment_site"), minv(model, data)
-    a, h = rng.normal(size=6), data.qfrc_bias.copy()
-    with_posture = osc_torque(J, Minv, a, h, rng.normal(size=6) * 20)
-    without = osc_torque(J, Minv, a, h, np.zeros(6))
-    np.testing.assert_allclose(J @ Minv @ (with_posture - h), a, rtol=1e-8, atol=1e-8)
-    np.testing.assert_allclose(with_posture, without, rtol=1e-7, atol=1e-7)
+    site, arrays = model.site(ur5e.SITE).id, PoseArrays.for_model(model)
+    servo, dt = Servo.from_model(model), model.opt.timestep
+    rng = np.random.default_rng(8)
+    for _ in range(3):  # near the home pose, where the servos are not saturated
+        data.qpos[:] = model.key(ur5e.HOME).qpos + rng.uniform(-0.3, 0.3, model.nq)
+        data.qvel[:] = rng.uniform(-0.3, 0.3, model.nv)
+        mujoco.mj_forward(model, data)
+        x_d = data.site_xpos[site] + rng.normal(0, 0.01, 3)
+        xdot_d, xddot_d = rng.normal(0, 0.2, 3), rng.normal(0, 0.5, 3)
+        quat_d = np.empty(4)
+        mujoco.mju_mat2Quat(quat_d, data.site_xmat[site])
+        tau = tracking_torque(
+            model, data, site, x_d, xdot_d, xddot_d, quat_d, LAB_GAINS, implicit_damping(servo, dt), arrays
+        ).copy()
+        assert np.all(np.abs(tau) < servo.force_hi)
+        J, jdq, e = site_jacobian(model, data, site), site_jdot_qdot(model, data, site), arrays.e.copy()
+        wanted = np.r_[xddot_d, 0, 0, 0] - LAB_GAINS.kd * (J @ data.qvel - np.r_[xdot_d, 0, 0, 0]) - LAB_GAINS.kp * e
+        v0 = data.qvel.copy()
+        data.ctrl[:] = servo_ctrl(servo, data.qpos, data.qvel, tau)
+        mujoco.mj_step(model, data)
+        np.testing.assert_allclose(J @ ((data.qvel - v0) / dt) + jdq, wanted, rtol=1e-6, atol=1e-6)
 
 
-def test_conditioning_bounds_lambda_at_a_singularity():
-    lam_inv = np.diag([1.0, 0.5, 1e-12, 2.0, 3.0, 4.0])      # one direction lost
-    y = np.ones(6)
-    out = conditioned_task_solve(lam_inv, y, pivot_floor=1e-3)
-    assert np.all(np.isfinite(out)) and abs(out[2]) <= 1 / np.sqrt(1e-3) ** 2 + 1e-9
-    np.testing.assert_allclose(out[[0, 1, 3, 4, 5]], 1 / np.diag(lam_inv)[[0, 1, 3, 4, 5]])
-
-
-def test_gains_and_task_reject_bad_input():
+def test_gains_reject_bad_input():
     with pytest.raises(ValueError, match="kp_pos"):
         PoseGains(kp_pos=-1.0)
-    with pytest.raises(ValueError, match="radius"):
-        ur5e.CircleTask(radius=float("nan"))
-    with pytest.raises(ValueError, match="quat"):
-        ur5e.CircleTask(quat=(0, 0, 0, 0))
-    with pytest.raises(ValueError, match="normal"):
-        ur5e.CircleTask(normal=(0, 0, 0))
-    with pytest.raises(ValueError, match="pivot_floor"):
-        OperationalSpaceController(pivot_floor=-1)
+    with pytest.raises(ValueError, match="kd_ori"):
+        PoseGains(kd_ori=float("nan"))
+    np.testing.assert_allclose(PoseGains(4.0, 9.0).kd, [4, 4, 4, 6, 6, 6])
 
 
 # ---------------------------------------------------------------------------------------
 # Closed loop
 # ---------------------------------------------------------------------------------------
 
-def test_lab_controller_reproduces_the_lab(ur):
+
+def test_lab_law_reproduces_the_lab(ur, circle):
     model, data = ur
-    run = ur5e.run(model, data, LabController(), lab_timing=True)
-    rms_mm = 1e3 * run.rms_position()
-    assert abs(rms_mm - 39.11) / 39.11 < 0.10
-    assert round(rms_mm, 2) == 39.11                       # the lab's printed figure
-    assert round(np.degrees(run.rms_orientation()), 3) == 2.996
-    assert len(run.t) == 4001                              # the lab's `while data.time < 8`
+    log = _run_lab(model, data, circle, lab_timing=True)
+    assert len(log.t) == 4001  # the lab's `while data.time < 8`
+    assert round(1e3 * metrics.rms_position_error(log), 2) == 39.11
+    assert round(np.degrees(metrics.rms_orientation_error(log, QUAT_D)), 3) == 2.996
+    # its first sample is computed from zeroed data: the flange at the origin, rotation 180 deg off
+    assert round(1e3 * np.linalg.norm(log.err[0])) == 738
+    np.testing.assert_allclose(np.degrees(np.linalg.norm(metrics.orientation_error(log, QUAT_D)[0])), 180.0)
+    assert round(np.degrees(metrics.rms_orientation_error(log, QUAT_D, after=1e-9)), 3) == 0.939
 
 
-def test_lab_lag_matches_the_closed_form(ur):
+def test_lab_lag_matches_the_closed_form(ur, circle):
     r"""Without feedforward the error obeys e'' + Kd e' + Kp e = -(x_d'' + Kd x_d'): amplitude
     rho |w^2 - i Kd w| / |Kp - w^2 + i Kd w| on the circle."""
     model, data = ur
-    run = ur5e.run(model, data, LabController())
+    log = _run_lab(model, data, circle, split_step=True)
     w, kp, kd, rho = 2 * np.pi * 0.25, 100.0, 20.0, 0.1
     amplitude = rho * abs(w**2 - 1j * kd * w) / abs(kp - w**2 + 1j * kd * w)
-    late = np.linalg.norm(run.err[run.t >= 4.0, :3], axis=1)
+    late = np.linalg.norm(log.err[log.t >= 4.0], axis=1)
     np.testing.assert_allclose(late.mean(), amplitude, rtol=0.05)
 
 
-def test_new_controller_tracks_within_half_a_millimetre(ur):
+def test_tracking_reaches_the_page_figures(ur, circle):
     model, data = ur
-    run = ur5e.run(model, data, OperationalSpaceController())
-    assert 1e3 * run.rms_position(after=1.0) <= 0.5
-    assert np.degrees(run.rms_orientation(after=1.0)) <= 0.05
-    assert not run.saturated.any()
-    servo = ur5e.Servo.from_model(model)
-    assert np.all((run.tau >= servo.force_lo) & (run.tau <= servo.force_hi))
-    np.testing.assert_allclose(run.tau_applied, run.tau, atol=1e-9)
+    log = _run_tracking(model, data, circle)
+    servo = Servo.from_model(model)
+    applied = servo_force(servo, log.q, log.qdot, log.ctrl)
+    assert round(1e3 * metrics.rms_position_error(log, after=1.0), 3) == 0.048
+    assert np.degrees(metrics.rms_orientation_error(log, QUAT_D, after=1.0)) < 1e-5
+    assert not metrics.saturation(log, applied).any()
+    assert round(100 * (metrics.peak_torque(log, applied) / servo.force_hi).max(), 1) == 41.4
 
 
-def test_each_improvement_matters(ur):
+def test_each_improvement_matters(ur, circle):
     """Feedforward, Jdot qdot and the servo compensation each cut the tracking error."""
     model, data = ur
-    full = ur5e.run(model, data, OperationalSpaceController()).rms_position(1.0)
-    for part in ("feedforward", "jdot", "compensate_servo"):
-        partial = ur5e.run(model, data, OperationalSpaceController(**{part: False})).rms_position(1.0)
-        assert partial > 5 * full, part
+    full = metrics.rms_position_error(_run_tracking(model, data, circle), after=1.0)
+    still = trajectories.SampledReference(circle.dt, circle.pos, 0 * circle.vel, 0 * circle.acc)
+    for name, log in (
+        ("feedforward", _run_tracking(model, data, still)),
+        ("jdot", _run_tracking(model, data, circle, jdot=False)),
+        ("servo compensation", _run_tracking(model, data, circle, compensate=False)),
+    ):
+        assert metrics.rms_position_error(log, after=1.0) > 5 * full, name
 
 
-def test_unreachable_target_saturates_and_is_reported(ur):
+def test_unreachable_target_is_pulled_back_and_the_limits_hold(ur):
     model, data = ur
-    far = ur5e.CircleTask(center=(1.3, 0.6, 0.6), duration=2.0)
-    with pytest.warns(RuntimeWarning, match="reach"):
-        run = ur5e.run(model, data, OperationalSpaceController(), far)
-    assert run.unreachable.all()
-    for name in ("q", "qdot", "tau", "tau_applied", "err"):
-        assert np.all(np.isfinite(getattr(run, name))), name
-    servo = ur5e.Servo.from_model(model)
-    assert np.all((run.tau_applied >= servo.force_lo - 1e-9) & (run.tau_applied <= servo.force_hi + 1e-9))
-    assert "reach" in run.report()
-    # the target is pulled back inside the reach and tracked there once the start-up is over
-    assert run.rms_position(after=1.5) < 1e-3
-    asked = far.reference(run.t).pos
-    assert np.linalg.norm(asked - run.ee, axis=1)[-1] > 0.2
+    dt = model.opt.timestep
+
+    def far(t):
+        return trajectories.circle_3d(t, (1.3, 0.6, 0.6), 0.1, (1, 1, 1), 0.25)
+
+    asked = trajectories.sample(far, dt, 2.0)
+    shoulder = ur5e.shoulder(model)
+    assert np.all(np.linalg.norm(asked.pos - shoulder, axis=1) > ur5e.REACH)
+    reachable = trajectories.within_reach(asked, shoulder, ur5e.SAFE_REACH)
+    np.testing.assert_allclose(np.linalg.norm(reachable.pos - shoulder, axis=1), ur5e.SAFE_REACH)
+    log = _run_tracking(model, data, reachable, duration=2.0)
+    servo = Servo.from_model(model)
+    applied = servo_force(servo, log.q, log.qdot, log.ctrl)
+    for name in ("q", "qdot", "tau", "err"):
+        assert np.all(np.isfinite(getattr(log, name))), name
+    assert np.all((applied >= servo.force_lo) & (applied <= servo.force_hi))
+    assert metrics.saturation(log, applied).any()
+    assert "limits were hit" in metrics.saturation_report(log, applied)
+    assert metrics.rms_position_error(log, after=1.5) < 1e-3
+    assert np.linalg.norm(asked(log.t[-1]).pos - log.ee[-1]) > 0.2
 
 
-def test_divergence_stops_with_time_and_state(ur):
-    model, data = ur
-
-    class Poisoned(OperationalSpaceController):
-        def bind(self, model, data, ref, quat):
-            super().bind(model, data, ref, quat)
-            good = self.update
-
-            def update(k):
-                if k == 30:
-                    data.qvel[2] = np.nan
-                return good(k)
-            self.update = update
-
-    with pytest.raises(SimulationDiverged) as info:
-        ur5e.run(model, data, Poisoned(), ur5e.CircleTask(duration=0.5), check_every=1)
-    assert 0.05 < info.value.t < 0.07
-    assert "t = 0.06" in str(info.value) and "q = " in str(info.value)
+def test_within_reach_keeps_inner_points_and_differentiates_the_outer_path():
+    dt = 0.002
+    line = trajectories.sample(lambda t: trajectories.Reference(np.c_[t, 0 * t, 0 * t], 0 * t, 0 * t), dt, 2.0)
+    pulled = trajectories.within_reach(line, np.zeros(3), 1.0)
+    inside = line.pos[:, 0] <= 1.0
+    np.testing.assert_array_equal(pulled.pos[inside], line.pos[inside])
+    np.testing.assert_allclose(pulled.pos[~inside], [[1.0, 0.0, 0.0]] * (~inside).sum())
+    np.testing.assert_allclose(pulled.vel[10:400, 0], 1.0)  # the line's speed, where it is kept
+    np.testing.assert_allclose(pulled.vel[600:, 0], 0.0, atol=1e-12)  # held on the sphere: at rest
+    with pytest.raises(ValueError, match="radius"):
+        trajectories.within_reach(line, np.zeros(3), -1.0)

@@ -1,0 +1,118 @@
+r"""Actuator mappings: how a controller's joint torque becomes MuJoCo's ``ctrl``.
+
+A torque motor takes the torque itself (the default of :func:`labsupport.sim.simulate`). The
+Menagerie UR5e has **position servos** instead: a ``general`` actuator with an affine bias,
+whose force on its joint is
+
+.. math:: f = k_p\,u - k_p\,q - k_v\,\dot q, \qquad |f| \le f_{\max}, \quad u \in [u_{\min}, u_{\max}]
+
+for the command :math:`u`. Inverting it once per step (:func:`servo_ctrl`) makes the servo exert
+the torque a controller asks for; :func:`servo_actuation` is that inversion in the form the
+loop applies, ``actuation(model, data, tau) -> ctrl``.
+
+The servo's damping :math:`k_v` is integrated *implicitly* by the ``implicitfast``
+integrator, so over one step the arm moves as if its inertia were :math:`M + \Delta t\,K_v`
+(:func:`implicit_damping`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Servo:
+    """The joint position servos of a model, one entry per actuator.
+
+    Attributes:
+        kp: position gains :math:`k_p` [N·m/rad] (``gainprm[0]``).
+        kv: velocity gains :math:`k_v` [N·m·s/rad] (``-biasprm[2]``).
+        force_lo, force_hi: ``forcerange`` [N·m] (infinite where the force is not limited).
+        ctrl_lo, ctrl_hi: ``ctrlrange`` [rad] (infinite where the command is not limited).
+    """
+
+    kp: np.ndarray
+    kv: np.ndarray
+    force_lo: np.ndarray
+    force_hi: np.ndarray
+    ctrl_lo: np.ndarray
+    ctrl_hi: np.ndarray
+
+    @classmethod
+    def from_model(cls, model: mujoco.MjModel) -> Servo:
+        """Read the servos of a model whose actuators are affine position servos, one per joint.
+
+        Raises:
+            ValueError: the model's actuators are not position servos on each of its joints.
+        """
+        kp = model.actuator_gainprm[:, 0].copy()
+        bias = model.actuator_biasprm[:, :3]
+        if model.nu != model.nv or not np.allclose(bias[:, 1], -kp) or np.any(kp <= 0):
+            raise ValueError(
+                "the model's actuators are not position servos (gainprm kp, biasprm 0 -kp -kv) "
+                "on each of its joints; use the default actuation (ctrl = tau) for torque motors"
+            )
+        inf = np.full(model.nu, np.inf)
+        force_limited = model.actuator_forcelimited.astype(bool)
+        ctrl_limited = model.actuator_ctrllimited.astype(bool)
+        arrays = dict(
+            kp=kp,
+            kv=-bias[:, 2].copy(),
+            force_lo=np.where(force_limited, model.actuator_forcerange[:, 0], -inf),
+            force_hi=np.where(force_limited, model.actuator_forcerange[:, 1], inf),
+            ctrl_lo=np.where(ctrl_limited, model.actuator_ctrlrange[:, 0], -inf),
+            ctrl_hi=np.where(ctrl_limited, model.actuator_ctrlrange[:, 1], inf),
+        )
+        for a in arrays.values():
+            a.setflags(write=False)
+        return cls(**arrays)
+
+
+def servo_ctrl(servo: Servo, q, qdot, tau, out: np.ndarray | None = None) -> np.ndarray:
+    r"""The command that makes the servo exert the torque ``tau`` (the servo inverted):
+
+    .. math:: u = \operatorname{clip}\big(q + \tfrac{k_v}{k_p}\dot q + \tfrac{\tau}{k_p},\; u_{\min}, u_{\max}\big)
+
+    Away from the clamps the servo's force :math:`k_p(u - q) - k_v\dot q` is exactly ``tau``.
+    Works row by row on arrays of shape ``(N, nu)``; ``out`` is an optional preallocated result.
+    """
+    u = np.multiply(servo.kv, qdot, out=out)  # k_v qdot
+    u += tau  # k_v qdot + tau
+    u /= servo.kp  # (k_v qdot + tau) / k_p
+    u += q  # q + (k_v qdot + tau) / k_p
+    return np.minimum(np.maximum(u, servo.ctrl_lo, out=u), servo.ctrl_hi, out=u)
+
+
+def servo_force(servo: Servo, q, qdot, ctrl) -> np.ndarray:
+    r"""The torque the servo exerts, :math:`\operatorname{clip}(k_p(u - q) - k_v\dot q,\ f_{\min}, f_{\max})`.
+
+    Row by row on arrays of shape ``(N, nu)``: with a :class:`labsupport.sim.Log`,
+    ``servo_force(servo, log.q, log.qdot, log.ctrl)`` is the torque each step applied.
+    """
+    f = servo.kp * (np.asarray(ctrl) - q) - servo.kv * np.asarray(qdot)
+    return np.clip(f, servo.force_lo, servo.force_hi)
+
+
+def servo_actuation(model: mujoco.MjModel):
+    """The actuation mapping for :func:`labsupport.sim.simulate`: ``actuation(model, data, tau)``
+    returns :func:`servo_ctrl` of the current state, in an array allocated once."""
+    servo = Servo.from_model(model)
+    ctrl = np.zeros(model.nu)
+
+    def actuation(model: mujoco.MjModel, data: mujoco.MjData, tau: np.ndarray) -> np.ndarray:
+        return servo_ctrl(servo, data.qpos, data.qvel, tau, out=ctrl)
+
+    return actuation
+
+
+def implicit_damping(servo: Servo, timestep: float) -> np.ndarray:
+    r"""Diagonal of :math:`\Delta t\,K_v`, the inertia the implicit integrator adds to each joint.
+
+    With ``implicitfast`` the servo's damping is evaluated at the *next* velocity, so one step
+    solves :math:`(M + \Delta t K_v)\,\ddot q = \tau - h` instead of :math:`M\ddot q = \tau - h`.
+    A controller that wants :math:`\ddot q^*` therefore adds :math:`\Delta t K_v\,\ddot q^*`.
+    """
+    return timestep * servo.kv
