@@ -1,89 +1,172 @@
-"""Grade one submission: run it in a sandbox process, then run the grader's own checks against it.
+"""Grade one submission: run its cells in a sandbox, then run the grader's own checks against it.
 
-``python -m labsupport.instructor.judge --spec SPEC --workdir DIR --notebook NAME --lib LIB``
-prints one JSON object (the row and the feedback) on stdout. The batch grader
-(:mod:`labsupport.instructor.batch`) starts one judge per submission.
+The checks run here, in the grader's process, which the submission cannot see: the sandbox
+(:mod:`labsupport.instructor.sandbox`, started by :mod:`labsupport.instructor.isolation`) only
+ever sends back plain numbers. Every simulation a check runs uses this process's MuJoCo model
+and loop; the submission's code is called once per control step, for its torque.
 
-The checks run here, in a process the submission never touches: the sandbox
-(:mod:`labsupport.instructor.sandbox`) only ever sends back plain numbers. Every simulation the
-checks run uses this process's MuJoCo model and loop; the submission's code is called once per
-control step, for its torque.
+Limits that decide a score count what the submission itself consumed, never wall time, so a
+busy machine cannot change a score:
+
+* CPU time, per cell, per call and per check (the sandbox's own timer interrupts a cell; the
+  judge reads the whole sandbox's CPU time from ``/proc`` and stops it if the timer was evaded);
+* time spent waiting without being runnable (``sleep``, a blocked read), which does not depend
+  on the machine's load either.
+
+A wall-clock backstop per submission (generous) stops a sandbox that neither computes nor
+waits measurably; that row is then marked "timed out: regrade", with no score.
 """
 
 from __future__ import annotations
 
-import argparse
-import hashlib
+import inspect
 import json
 import os
-import resource
 import secrets
 import select
 import signal
 import subprocess
-import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from labsupport.grading.feedback import (NOT_IMPLEMENTED, PASS, Probe, Result, State, StudentError,
-                                         StudentTimeout, failed)
+from labsupport.grading.feedback import (
+    NOT_IMPLEMENTED,
+    PASS,
+    Probe,
+    Result,
+    State,
+    StudentError,
+    StudentTimeout,
+    failed,
+)
+from labsupport.instructor import isolation
+
+#: Status of a row stopped by the wall-clock backstop (no score: grade it again).
+REGRADE = "timed out: regrade"
+
+
+@dataclass(frozen=True)
+class Budget:
+    """The limits a submission's code runs under (CPU seconds unless said otherwise).
+
+    Attributes:
+        cell: CPU time of one cell.
+        run: CPU time of all cells together.
+        call: CPU time of one call of a student's function.
+        check: CPU time of the student's code over one check (a simulation calls it every step).
+        idle: time one cell or call may wait without being runnable [s].
+        wall: wall-clock backstop for the whole submission [s]; past it the row says "timed out: regrade".
+    """
+
+    cell: float = 60.0
+    run: float = 120.0
+    call: float = 10.0
+    check: float = 60.0
+    idle: float = 20.0
+    wall: float = 900.0
+
+
+#: The limits a batch uses unless told otherwise.
+DEFAULT_BUDGET = Budget()
+
+#: How far past a limit the judge lets the sandbox go before stopping it itself.
+GRACE = 5.0
 
 
 class SandboxDied(StudentError):
     """The sandbox process ended (the notebook exited, crashed, or was stopped)."""
 
 
-class SandboxProbe(Probe):
-    """A :class:`Probe` whose calls go to a sandbox process that ran the submission's cells."""
+class WallClockExceeded(Exception):
+    """The wall-clock backstop ran out: the row gets no score and must be graded again."""
 
-    def __init__(self, workdir: Path, lib: Path, cells: list[tuple[int, str]], run_timeout: float = 120,
-                 cell_timeout: float = 60, call_timeout: float = 10, max_starts: int = 3):
-        self.workdir, self.lib, self.cells = Path(workdir), Path(lib), cells
-        self.run_timeout, self.call_timeout = run_timeout, call_timeout
-        self.cell_timeout = min(cell_timeout, max(1.0, run_timeout / 2))  # one hung cell leaves time for the rest
-        self.max_starts = max_starts
+
+def _stat(pid: int):
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return int(fields[1]), sum(int(x) for x in fields[11:15])  # ppid, utime+stime+cutime+cstime
+
+
+def tree_cpu(root: int) -> float:
+    """CPU time [s] of process ``root`` and all its descendants (children already reaped included)."""
+    parents, cpu = {}, {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                parents[int(entry)], cpu[int(entry)] = _stat(int(entry))
+            except (OSError, ValueError, IndexError):
+                continue
+    members, frontier = {root}, [root]
+    children: dict[int, list[int]] = {}
+    for pid, ppid in parents.items():
+        children.setdefault(ppid, []).append(pid)
+    while frontier:
+        for child in children.get(frontier.pop(), []):
+            if child not in members:
+                members.add(child)
+                frontier.append(child)
+    return sum(cpu.get(p, 0) for p in members) / os.sysconf("SC_CLK_TCK")
+
+
+class SandboxProbe(Probe):
+    """A :class:`Probe` whose calls go to a sandbox that ran the submission's cells."""
+
+    def __init__(
+        self,
+        command,
+        cells: list[tuple[int, str]],
+        budget: Budget = DEFAULT_BUDGET,
+        env=None,
+        cwd=None,
+        limits: isolation.Limits = isolation.DEFAULT_LIMITS,
+        max_starts: int = 3,
+    ):
+        self.command, self.env, self.cwd, self.limits = command, env, cwd, limits
+        self.depth = 2 if Path(command[0]).name == "bwrap" else 0
+        self.cells, self.budget, self.max_starts = cells, budget, max_starts
         self.proc: subprocess.Popen | None = None
         self.starts = 0
-        self.deadline = float("inf")  # set by the judge for each check
+        self.wall_deadline = time.monotonic() + budget.wall
+        self.check_cpu_left = float("inf")  # set by the judge for each check
+        self.cpu_seen = 0.0
         self.first_run: dict | None = None
         self.start_problem: str | None = None
 
     # -- process ---------------------------------------------------------------------------------
-    def _env(self) -> dict:
-        scratch = self.workdir.parent
-        env = {k: v for k, v in os.environ.items() if k in ("PATH", "LANG", "LC_ALL", "MUJOCO_GL", "SYSTEMROOT")}
-        for sub in ("home", "tmp"):
-            (scratch / sub).mkdir(exist_ok=True)
-        env.update(PYTHONPATH=str(self.lib), PYTHONNOUSERSITE="1", PYTHONDONTWRITEBYTECODE="1",
-                   HOME=str(scratch / "home"), TMPDIR=str(scratch / "tmp"), MPLBACKEND="Agg",
-                   MPLCONFIGDIR=str(scratch / "home"), IPYTHONDIR=str(scratch / "home" / ".ipython"),
-                   OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
-        return env
-
     def start(self) -> None:
         """Start a sandbox and run the notebook's cells in it."""
         if self.starts >= self.max_starts:
             raise SandboxDied(f"skipped: the submission's process had to be stopped {self.starts} times")
         self.stop()
         self.starts += 1
-        cpu = int(self.run_timeout + 600)
-
-        def limits():
-            os.setpgid(0, 0)  # its own group (stopped as one), inside the judge's session
-            resource.setrlimit(resource.RLIMIT_FSIZE, (64 << 20, 64 << 20))  # no file over 64 MB
-            resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu))
-            resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
-
-        self.proc = subprocess.Popen([sys.executable, "-m", "labsupport.instructor.sandbox"], cwd=self.workdir,
-                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                                     env=self._env(), preexec_fn=limits)
+        limits = self.limits
+        self.proc = subprocess.Popen(
+            self.command,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            env=self.env,
+            cwd=self.cwd,
+            start_new_session=True,
+            preexec_fn=lambda: isolation.apply_limits(limits),
+        )
+        self.cpu_seen = 0.0
         try:
-            answer = self._request({"op": "run", "cells": [src for _, src in self.cells],
-                                    "cell_timeout": self.cell_timeout}, self.run_timeout, check_deadline=False)
-        except StudentTimeout:
-            self.start_problem = f"the notebook's cells did not finish within {self.run_timeout:g} s"
+            answer = self._request(
+                {
+                    "op": "run",
+                    "cells": [src for _, src in self.cells],
+                    "cell_cpu": self.budget.cell,
+                    "idle": self.budget.idle,
+                },
+                self.budget.run,
+                per_check=False,
+            )
+        except StudentTimeout as err:
+            self.start_problem = f"the notebook's cells did not finish: {err}"
             raise StudentTimeout(self.start_problem) from None
         except SandboxDied:
             self.start_problem = "the notebook ended the grading process while its cells ran (exit, crash or kill)"
@@ -92,15 +175,24 @@ class SandboxProbe(Probe):
             self.first_run = answer
 
     def stop(self) -> None:
-        if self.proc is not None and self.proc.poll() is None:
-            try:
-                os.killpg(self.proc.pid, signal.SIGKILL)
-            except (ProcessLookupError, PermissionError):
-                pass
+        """Stop the sandbox: killing bubblewrap tears down its PID namespace and everything in it."""
+        if self.proc is not None:
+            for kill in (lambda: os.killpg(self.proc.pid, signal.SIGKILL), lambda: self.proc.kill()):
+                try:
+                    kill()
+                except (ProcessLookupError, PermissionError):
+                    pass
             self.proc.wait()
+            for f in (self.proc.stdin, self.proc.stdout):
+                try:
+                    f.close()
+                except OSError:
+                    pass
         self.proc = None
 
-    def _request(self, payload: dict, timeout: float, check_deadline: bool = True) -> dict:
+    def _request(self, payload: dict, cpu_limit: float, per_check: bool = True) -> dict:
+        """Send one request; wait for its answer while the sandbox stays within ``cpu_limit`` CPU
+        seconds, the idle limit, the check's CPU budget and the wall-clock backstop."""
         nonce = secrets.token_hex(8)
         payload["nonce"] = nonce
         try:
@@ -109,17 +201,25 @@ class SandboxProbe(Probe):
         except (BrokenPipeError, OSError):
             self.stop()
             raise SandboxDied("the submission's process has ended") from None
-        end = time.monotonic() + timeout
-        if check_deadline:
-            end = min(end, self.deadline)
         fd = self.proc.stdout
+        cpu0 = busy0 = None
         while True:
-            left = end - time.monotonic()
-            if left <= 0 or not select.select([fd], [], [], left)[0]:
-                self.stop()
-                if check_deadline and time.monotonic() >= self.deadline:
-                    raise StudentTimeout("the check ran out of time (the submission's code is too slow or hangs)")
-                raise StudentTimeout(f"no answer within {timeout:g} s")
+            if not select.select([fd], [], [], 0.25)[0]:
+                if time.monotonic() > self.wall_deadline:
+                    self.stop()
+                    raise WallClockExceeded(f"grading took more than {self.budget.wall:g} s of wall-clock time")
+                cpu, busy = tree_cpu(self.proc.pid), _busy(self._server_pid())
+                if cpu0 is None:  # measured from the first poll: a quick answer costs no /proc reads
+                    cpu0, busy0 = cpu - 0.25, busy
+                limit = min(cpu_limit, self.check_cpu_left) if per_check else cpu_limit
+                if cpu - cpu0 > limit + GRACE:
+                    self.stop()
+                    raise StudentTimeout(f"it used more than {limit:g} s of CPU time")
+                idle = (busy[0] - busy0[0]) - (busy[1] - busy0[1])
+                if idle > self.budget.idle + GRACE:
+                    self.stop()
+                    raise StudentTimeout(f"it waited more than {self.budget.idle:g} s without computing")
+                continue
             line = fd.readline()
             if not line:
                 self.stop()
@@ -129,7 +229,27 @@ class SandboxProbe(Probe):
             except ValueError:
                 continue  # not ours
             if isinstance(answer, dict) and answer.get("nonce") == nonce:
+                cpu = float(answer.get("cpu", 0.0)) if isinstance(answer.get("cpu"), (int, float)) else 0.0
+                if per_check:
+                    self.check_cpu_left -= max(0.0, cpu - self.cpu_seen)
+                self.cpu_seen = cpu
+                if per_check and self.check_cpu_left < 0:
+                    raise StudentTimeout(
+                        f"the check ran out of CPU time ({self.budget.check:g} s for the submission's code)"
+                    )
                 return answer
+
+    def _server_pid(self) -> int:
+        """The cell server: bubblewrap's grandchild (bubblewrap, its PID-1 init, the server), or the
+        process itself without a sandbox."""
+        pid = self.proc.pid
+        for _ in range(self.depth):
+            try:
+                with open(f"/proc/{pid}/task/{pid}/children") as f:
+                    pid = int(f.read().split()[0])
+            except (OSError, ValueError, IndexError):
+                return pid
+        return pid
 
     def _ensure(self) -> None:
         if self.proc is None or self.proc.poll() is not None:
@@ -141,23 +261,52 @@ class SandboxProbe(Probe):
     def _ask(self, payload: dict, name: str) -> dict:
         self._ensure()
         try:
-            return self._request(payload, self.call_timeout)
+            return self._request(payload, self.budget.call)
         except StudentTimeout as err:
             raise StudentTimeout(f"{name} did not return: {err}") from None
 
     def call(self, fname: str, *args, **kwargs):
-        payload = {"op": "call", "name": fname, "args": [_encode_arg(a) for a in args],
-                   "kwargs": {k: _encode_arg(v) for k, v in kwargs.items()}, "timeout": self.call_timeout}
+        payload = {
+            "op": "call",
+            "name": fname,
+            "args": [_encode_arg(a) for a in args],
+            "kwargs": {k: _encode_arg(v) for k, v in kwargs.items()},
+            "cpu": self.budget.call,
+            "idle": self.budget.idle,
+        }
         return _decode(fname, self._ask(payload, fname), call=True)
 
     def get(self, name: str):
-        return _decode(name, self._ask({"op": "get", "name": name, "timeout": self.call_timeout}, name))
+        return _decode(
+            name, self._ask({"op": "get", "name": name, "cpu": self.budget.call, "idle": self.budget.idle}, name)
+        )
+
+    def files(self) -> dict:
+        """What the notebook wrote, changed or deleted in its scratch space (empty if it is not running)."""
+        if self.proc is None or self.proc.poll() is not None:
+            return {}
+        try:
+            return self._request({"op": "files"}, self.budget.call, per_check=False)
+        except StudentError:
+            return {}
+
+
+def _busy(pid: int) -> tuple[float, float]:
+    """``(wall clock, CPU time + time queued for a CPU)`` of process ``pid`` [s]: their difference
+    grows only while it waits without being runnable, however busy the machine is."""
+    try:
+        with open(f"/proc/{pid}/schedstat") as f:
+            cpu, queued = (int(x) for x in f.read().split()[:2])
+        return time.monotonic(), (cpu + queued) * 1e-9
+    except (OSError, ValueError):
+        return time.monotonic(), time.monotonic()  # unknown: never counts as waiting
 
 
 def _encode_arg(a):
     if isinstance(a, State):
-        return {"state": {"q": np.asarray(a.q, float).tolist(), "qdot": np.asarray(a.qdot, float).tolist(),
-                          "t": float(a.t)}}
+        return {
+            "state": {"q": np.asarray(a.q, float).tolist(), "qdot": np.asarray(a.qdot, float).tolist(), "t": float(a.t)}
+        }
     if isinstance(a, np.ndarray):
         return a.astype(float).tolist()
     if isinstance(a, (np.floating, np.integer)):
@@ -171,7 +320,8 @@ def _decode(name: str, answer: dict, call: bool = False):
     if answer.get("not_callable"):
         raise StudentError(f"{name} should be a function, but it is a {answer.get('type')}")
     if answer.get("timeout"):
-        raise StudentTimeout(f"{name} did not return within the time limit")
+        why = "used too much CPU time" if answer["timeout"] == "cpu" else "waited too long"
+        raise StudentTimeout(f"{name} did not return: it {why}")
     if "raised" in answer:
         raise StudentError(f"{name} raised {answer['raised']}")
     if answer.get("none"):
@@ -189,10 +339,11 @@ def _decode(name: str, answer: dict, call: bool = False):
 # one submission
 # ---------------------------------------------------------------------------------------------
 
-def read_cells(path: Path) -> list[tuple[int, str]]:
+
+def read_cells(text: bytes) -> list[tuple[int, str]]:
     """``(cell index, source)`` of every code cell; ValueError with a plain reason if unreadable."""
     try:
-        nb = json.loads(path.read_text(encoding="utf-8"))
+        nb = json.loads(text.decode("utf-8"))
     except UnicodeDecodeError:
         raise ValueError("not a notebook: the file is not UTF-8 text") from None
     except json.JSONDecodeError as err:
@@ -212,20 +363,26 @@ def read_cells(path: Path) -> list[tuple[int, str]]:
     return cells
 
 
-def _listing(folder: Path) -> dict[str, str]:
-    out = {}
-    for p in sorted(folder.rglob("*")):
-        if p.is_file() and not p.is_symlink() and "__pycache__" not in p.parts:
-            try:
-                out[str(p.relative_to(folder))] = hashlib.sha256(p.read_bytes()).hexdigest()
-            except OSError:
-                out[str(p.relative_to(folder))] = "?"
-    return out
+def run_check(check, probe: Probe, seed: int) -> Result:
+    """``check(probe, seed)`` (a check written before seeds existed takes only the probe)."""
+    if len(inspect.signature(check).parameters) >= 2:
+        return check(probe, seed)
+    return check(probe)
 
 
-def grade(spec: dict, workdir: Path, notebook: str, lib: Path, check_timeout: float = 90,
-          run_timeout: float = 120) -> dict:
-    """Grade ``workdir/notebook``; returns scores (points), messages and notes."""
+def grade(
+    spec: dict,
+    notebook: bytes,
+    seed: int,
+    start,
+    budget: Budget = DEFAULT_BUDGET,
+    limits: isolation.Limits = isolation.DEFAULT_LIMITS,
+) -> dict:
+    """Grade one notebook (its bytes) with the checks of ``spec`` at ``seed``.
+
+    ``start()`` returns ``(command, env, cwd)`` of a fresh sandbox server. Returns the row:
+    status, scores (points), messages and notes.
+    """
     from labsupport.grading import registry
 
     checks = registry()
@@ -233,74 +390,71 @@ def grade(spec: dict, workdir: Path, notebook: str, lib: Path, check_timeout: fl
     points = {c["name"]: float(c["points"]) for c in spec["checks"]}
     zero = {n: 0.0 for n in names}
     try:
-        cells = read_cells(workdir / notebook)
-    except (ValueError, OSError) as err:
-        return {"status": "unreadable", "scores": zero, "messages": {n: str(err) for n in names},
-                "notes": [str(err)]}
+        cells = read_cells(notebook)
+    except ValueError as err:
+        return {"status": "unreadable", "scores": zero, "messages": {n: str(err) for n in names}, "notes": [str(err)]}
 
-    before_files, before_lib = _listing(workdir), _listing(lib)
-    probe = SandboxProbe(workdir, lib, cells, run_timeout=run_timeout)
+    command, env, cwd = start()
+    probe = SandboxProbe(command, cells, budget, env=env, cwd=cwd, limits=limits)
     notes: list[str] = []
-    try:
-        probe.start()
-    except StudentError as err:
-        notes.append(str(err))
-    if probe.first_run:
-        for k, text in probe.first_run.get("errors", [])[:5]:
-            cell_index = cells[k][0] if 0 <= k < len(cells) else k
-            notes.append(f"cell {cell_index} {'timed out' if text == 'timed out' else 'raised ' + text}")
-        patched = probe.first_run.get("patched", [])
-        if patched:
-            notes.append("the notebook replaced " + ", ".join(patched[:5]) + (" ..." if len(patched) > 5 else "")
-                         + " (no effect on grading: the checks run in a separate process)")
-
     scores, messages, statuses = {}, {}, {}
-    for name in names:
-        probe.deadline = time.monotonic() + check_timeout
+    try:
         try:
-            if probe.start_problem is not None:  # the notebook itself never finished: nothing to check
-                raise StudentError(f"not graded: {probe.start_problem}")
-            result = checks[name](probe)
+            probe.start()
         except StudentError as err:
-            result = failed(name, str(err))
-        except Exception as err:  # a bug in a check must not lose the row
-            result = Result(name, 0.0, "error", f"the grader could not run this check: {type(err).__name__}: {err}")
-        scores[name] = round(result.score * points[name], 4)
-        messages[name] = result.message
-        statuses[name] = result.status
-    probe.stop()
+            notes.append(str(err))
+        if probe.first_run:
+            for k, text in probe.first_run.get("errors", [])[:5]:
+                cell_index = cells[k][0] if 0 <= k < len(cells) else k
+                notes.append(f"cell {cell_index} {text if text.startswith('timed out') else 'raised ' + text}")
+            patched = probe.first_run.get("patched", [])
+            if patched:
+                notes.append(
+                    "the notebook replaced "
+                    + ", ".join(patched[:5])
+                    + (" ..." if len(patched) > 5 else "")
+                    + " (no effect on grading: the checks run in a separate process)"
+                )
+        for name in names:
+            probe.check_cpu_left = budget.check
+            try:
+                if probe.start_problem is not None:  # the notebook itself never finished: nothing to check
+                    raise StudentError(f"not graded: {probe.start_problem}")
+                result = run_check(checks[name], probe, seed)
+            except StudentError as err:
+                result = failed(name, str(err))
+            except WallClockExceeded:
+                raise
+            except Exception as err:  # a bug in a check must not lose the row
+                result = Result(name, 0.0, "error", f"the grader could not run this check: {type(err).__name__}: {err}")
+            scores[name] = round(result.score * points[name], 4)
+            messages[name] = result.message
+            statuses[name] = result.status
+        files = probe.files()
+    except WallClockExceeded as err:
+        return {
+            "status": REGRADE,
+            "scores": {},
+            "messages": {},
+            "notes": [
+                f"{err}: the machine was too busy or the submission stalled; grade it again "
+                "(with the same --seed) before recording a score"
+            ],
+        }
+    finally:
+        probe.stop()
 
-    after_files = _listing(workdir)
-    wrote = [f for f in after_files if f not in before_files and f != "notebook.log"]
-    changed = [f for f in after_files if f in before_files and after_files[f] != before_files[f]]
-    deleted = [f for f in before_files if f not in after_files]
-    for label, files in (("wrote", wrote), ("changed", changed), ("deleted", deleted)):
-        if files:
-            notes.append(f"the notebook {label} files: {', '.join(files[:5])}" + (" ..." if len(files) > 5 else "")
-                         + " (in its scratch copy; ignored)")
-    if _listing(lib) != before_lib:
-        notes.append("the notebook modified its copy of labsupport's files (ignored: the grader uses its own)")
+    for label in ("wrote", "changed", "deleted"):
+        paths = files.get(label, [])
+        if paths:
+            notes.append(
+                f"the notebook {label} files: {', '.join(paths[:5])}"
+                + (" ..." if len(paths) > 5 else "")
+                + " (in its private scratch space; ignored)"
+            )
     for name in names:
         if statuses[name] == NOT_IMPLEMENTED:
             notes.append(f"{name}: not implemented yet")
         elif statuses[name] != PASS and probe.start_problem is None:
             notes.append(f"{name}: {messages[name]}")
     return {"status": "graded", "scores": scores, "messages": messages, "notes": notes}
-
-
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--spec", required=True, type=Path)
-    parser.add_argument("--workdir", required=True, type=Path)
-    parser.add_argument("--notebook", required=True)
-    parser.add_argument("--lib", required=True, type=Path)
-    parser.add_argument("--check-timeout", type=float, default=90)
-    parser.add_argument("--run-timeout", type=float, default=120)
-    args = parser.parse_args(argv)
-    spec = json.loads(args.spec.read_text(encoding="utf-8"))
-    out = grade(spec, args.workdir, args.notebook, args.lib, args.check_timeout, args.run_timeout)
-    sys.stdout.write(json.dumps(out) + "\n")
-
-
-if __name__ == "__main__":
-    main()

@@ -1,40 +1,90 @@
-"""The process that runs one submission and answers the judge's calls into it.
+"""The server that runs one submission's cells inside its sandbox and answers the judge's calls.
 
-Started by :mod:`labsupport.instructor.judge` as ``python -m labsupport.instructor.sandbox`` in the
-submission's scratch folder, with its own copy of labsupport on ``PYTHONPATH``. It speaks JSON
+:mod:`labsupport.instructor.isolation` copies this file into the sandbox and starts it there
+(it imports nothing of labsupport.instructor, which the sandbox does not have). It speaks JSON
 lines on the pipes it was started with (requests on stdin, answers on stdout); before any
-student code runs, those pipes are moved to private descriptors and the student's prints go to
-``notebook.log``.
+student code runs, those pipes move to private descriptors and whatever the notebook prints
+goes nowhere.
 
 Requests (each carries a ``nonce`` echoed in the answer):
 
-* ``{"op": "run", "cells": [...], "cell_timeout": s}``: run the code cells in order in one
-  IPython shell; answers the errors of each cell and what the notebook changed in labsupport.
-* ``{"op": "call", "name": f, "args": [...], "kwargs": {...}}``: call the student's function;
-  ``{"state": {...}}`` arguments become ``(model, data)`` of the 3R arm at that state.
+* ``{"op": "run", "cells": [...], "cell_cpu": s, "idle": s}``: run the code cells in order in
+  one IPython shell; answers each cell's error and what the notebook replaced in the modules
+  the checks rely on.
+* ``{"op": "call", "name": f, "args": [...], "kwargs": {...}, "cpu": s, "idle": s}``: call the
+  student's function; a ``{"state": {...}}`` argument becomes ``(model, data)`` of the 3R arm at
+  that state.
 * ``{"op": "get", "name": v}``: the value of a variable.
+* ``{"op": "files"}``: the files the notebook created, changed or deleted in its scratch space.
 
-Values travel as JSON (``{"none": true}``, ``{"array": [...], "shape": [...]}``,
-``{"raised": "..."}`` ...): nothing the student returns is ever unpickled by the grader.
+Limits count the process's own CPU time (``ITIMER_PROF``) and the time it spends waiting
+without being runnable (wall time minus CPU time minus time spent queued for a CPU, from
+``/proc/self/schedstat``): neither depends on how busy the machine is. Every answer carries
+``cpu``, the process's CPU time so far. Values travel as JSON (``{"none": true}``,
+``{"array": [...], "shape": [...]}``, ``{"raised": "..."}``): nothing the student returns is
+ever unpickled by the grader.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import signal
 import sys
+import time
 
 #: Largest array the sandbox sends back.
 MAX_ELEMENTS = 10_000
+#: Files MuJoCo itself writes (its warning log): never the notebook's doing.
+LIBRARY_FILES = ("MUJOCO_LOG.TXT",)
 
 
 class CellTimeout(BaseException):
-    """A cell or call ran past its time limit (BaseException: ``except Exception`` does not catch it)."""
+    """A cell or call ran past its limit (BaseException: ``except Exception`` does not catch it)."""
 
 
-def _alarm(signum, frame):
-    raise CellTimeout()
+class Watch:
+    """CPU-time and waiting-time limits of the request in progress."""
+
+    def __init__(self):
+        self.idle_limit = None
+        self.start = None
+        self.reason = ""
+
+    @staticmethod
+    def running_and_queued() -> float:
+        """CPU time plus time spent waiting for a CPU [s] (``/proc/self/schedstat``)."""
+        try:
+            with open("/proc/self/schedstat") as f:
+                cpu, queued = f.read().split()[:2]
+            return (int(cpu) + int(queued)) * 1e-9
+        except (OSError, ValueError):
+            return time.process_time()
+
+    def idle(self) -> float:
+        wall0, busy0 = self.start
+        return (time.monotonic() - wall0) - (self.running_and_queued() - busy0)
+
+    def arm(self, cpu: float, idle: float) -> None:
+        self.idle_limit = idle
+        self.start = (time.monotonic(), self.running_and_queued())
+        signal.setitimer(signal.ITIMER_PROF, max(cpu, 0.01))
+        signal.setitimer(signal.ITIMER_REAL, 0.5, 0.5)
+
+    def disarm(self) -> None:
+        signal.setitimer(signal.ITIMER_PROF, 0)
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        self.idle_limit = None
+
+    def on_cpu(self, signum, frame):
+        self.reason = "cpu"
+        raise CellTimeout()
+
+    def on_tick(self, signum, frame):
+        if self.idle_limit is not None and self.idle() > self.idle_limit:
+            self.reason = "idle"
+            raise CellTimeout()
 
 
 def _encode(value):
@@ -57,7 +107,7 @@ def _snapshot(prefixes=("labsupport", "mujoco", "numpy")):
     """Identity of every public attribute of the modules the grader relies on."""
     snap = {}
     for name, mod in list(sys.modules.items()):
-        if mod is None or not name.split(".")[0] in prefixes or name.startswith("labsupport.instructor.sandbox"):
+        if mod is None or name.split(".")[0] not in prefixes:
             continue
         try:
             snap[name] = {k: id(v) for k, v in vars(mod).items() if not k.startswith("_")}
@@ -76,22 +126,37 @@ def _changed(before, after):
     return sorted(out)
 
 
+def _listing(folders) -> dict[str, str]:
+    """``{path: sha256}`` of the files under ``folders`` (MuJoCo's own log left out)."""
+    out = {}
+    for folder in folders:
+        for base, dirs, files in os.walk(folder):
+            dirs[:] = [d for d in dirs if d not in ("__pycache__", ".config", ".cache", ".ipython")]
+            for name in files:
+                path = os.path.join(base, name)
+                if name in LIBRARY_FILES or os.path.islink(path):
+                    continue
+                try:
+                    with open(path, "rb") as f:
+                        out[path] = hashlib.sha256(f.read(1 << 20)).hexdigest()
+                except OSError:
+                    out[path] = "?"
+    return out
+
+
 def main() -> None:
-    # keep the pipes to the judge private, send everything the notebook prints to a log
+    # keep the pipes to the judge private; whatever the notebook prints goes nowhere
     rpc_in = os.fdopen(os.dup(0), "r", encoding="utf-8")
     rpc_out = os.fdopen(os.dup(1), "w", encoding="utf-8")
-    log = os.open("notebook.log", os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-    devnull = os.open(os.devnull, os.O_RDONLY)
-    os.dup2(devnull, 0)
-    os.dup2(log, 1)
-    os.dup2(log, 2)
+    devnull = os.open(os.devnull, os.O_RDWR)
+    for fd in (0, 1, 2):
+        os.dup2(devnull, fd)
     sys.stdin = open(os.devnull, encoding="utf-8")
-    sys.stdout = os.fdopen(1, "w", buffering=1, encoding="utf-8", errors="replace")
-    sys.stderr = sys.stdout
-    os.environ["LABSUPPORT_GRADING_BATCH"] = "1"
-    os.environ.setdefault("MPLBACKEND", "Agg")
+    sys.stdout = sys.stderr = open(os.devnull, "w", encoding="utf-8")
+    scratch = (os.getcwd(), os.environ.get("TMPDIR", "/tmp"))
+    files_before = _listing(scratch)
 
-    import labsupport  # noqa: F401  (chooses the GL backend before mujoco)
+    import labsupport  # noqa: F401, I001  (chooses the GL backend before mujoco)
     import mujoco
     import numpy as np
     from IPython.core.interactiveshell import InteractiveShell
@@ -99,14 +164,17 @@ def main() -> None:
     from labsupport.plants import load_model
 
     model, _ = load_model("spatial_3r")
+    data = mujoco.MjData(model)
     shell = InteractiveShell.instance()
-    signal.signal(signal.SIGALRM, _alarm)
+    watch = Watch()
+    signal.signal(signal.SIGPROF, watch.on_cpu)
+    signal.signal(signal.SIGALRM, watch.on_tick)
 
     def expand(args):
         out = []
         for a in args:
             if isinstance(a, dict) and "state" in a:
-                data = mujoco.MjData(model)
+                mujoco.mj_resetData(model, data)
                 data.qpos[:] = a["state"]["q"]
                 data.qvel[:] = a["state"]["qdot"]
                 data.time = a["state"]["t"]
@@ -120,6 +188,7 @@ def main() -> None:
 
     def answer(nonce, payload):
         payload["nonce"] = nonce
+        payload["cpu"] = time.process_time()
         rpc_out.write(json.dumps(payload) + "\n")
         rpc_out.flush()
 
@@ -129,22 +198,24 @@ def main() -> None:
         except ValueError:
             continue
         nonce, op = req.get("nonce"), req.get("op")
+        idle = float(req.get("idle", 30))
         if op == "run":
             before = _snapshot()
             errors = []
             for k, src in enumerate(req["cells"]):
-                signal.alarm(int(req.get("cell_timeout", 60)))
                 try:
+                    watch.arm(float(req.get("cell_cpu", 60)), idle)
                     result = shell.run_cell(src, store_history=False, silent=True)
+                    watch.disarm()
                     err = result.error_in_exec or result.error_before_exec
                     if isinstance(err, CellTimeout):
-                        errors.append([k, "timed out"])
+                        errors.append([k, f"timed out ({watch.reason})"])
                     elif err is not None:
                         errors.append([k, f"{type(err).__name__}: {str(err)[:200]}"])
                 except CellTimeout:
-                    errors.append([k, "timed out"])
+                    errors.append([k, f"timed out ({watch.reason})"])
                 finally:
-                    signal.alarm(0)
+                    watch.disarm()
             changed = _changed(before, _snapshot())
             answer(nonce, {"errors": errors, "patched": changed[:20]})
         elif op in ("call", "get"):
@@ -153,23 +224,35 @@ def main() -> None:
             if name not in ns:
                 answer(nonce, {"missing": True})
                 continue
-            signal.alarm(int(req.get("timeout", 10)))
             try:
+                watch.arm(float(req.get("cpu", 10)), idle)
                 if op == "get":
                     value = ns[name]
                 elif not callable(ns[name]):
+                    watch.disarm()
                     answer(nonce, {"type": type(ns[name]).__name__, "not_callable": True})
                     continue
                 else:
                     value = ns[name](*expand(req.get("args", [])), **req.get("kwargs", {}))
+                watch.disarm()
                 payload = _encode(value)
             except CellTimeout:
-                payload = {"timeout": True}
+                payload = {"timeout": watch.reason}
             except BaseException as err:  # the student's code may raise anything, SystemExit included
-                payload = {"raised": f"{type(err).__name__}: {str(err)[:200]}"}
+                payload = {"raised": f"{type(err).__name__}: {str(err)[:300]}"}
             finally:
-                signal.alarm(0)
+                watch.disarm()
             answer(nonce, payload)
+        elif op == "files":
+            after = _listing(scratch)
+            answer(
+                nonce,
+                {
+                    "wrote": sorted(f for f in after if f not in files_before),
+                    "changed": sorted(f for f in after if f in files_before and after[f] != files_before[f]),
+                    "deleted": sorted(f for f in files_before if f not in after),
+                },
+            )
 
 
 if __name__ == "__main__":
