@@ -5,15 +5,16 @@ Modules, one idea each:
 ========================  ===============================================================
 ``plants``                the analytic single-joint model and the MuJoCo model loaders
 ``dynamics``              mass matrix, bias forces, Jacobians from MuJoCo (3.x and 4.x)
-``kinematics``            forward/inverse kinematics of the 2R and 3R arms
+``kinematics``            forward/inverse kinematics of the 2R arm (the 3R arm's is a Problem)
 ``trajectories``          versine, sinusoid and circles: position, velocity, acceleration
 ``gains``                 PD gain design (actuator limit, %OS/settling time, wn/zeta)
 ``controllers``           the control laws, one function each: PI, PD, feedforward, computed torque, OS-CT
 ``sim``                   one MuJoCo simulation loop that returns a :class:`~labsupport.sim.Log`
-``metrics``               RMS error, cumulative effort, overshoot, settling time
+``metrics``               functions of a Log: RMS errors, effort, overshoot, settling time, saturation
 ``render``                offscreen MuJoCo video (EGL, OSMesa fallback) with mediapy
 ``ur5e``                  the Menagerie UR5e with the lab's scene, loaded from any directory
-``grading``               in-notebook checks of the Problems and the batch grader
+``actuators``             position servos as an actuator mapping: the one servo inversion
+``grading``               in-notebook checks of the Problems (batch grading: labsupport.instructor)
 ``plots``                 the figure layouts the notebooks share
 ``book``                  glue and show_law: prose numbers and law code come from the package
 ``validate``              the one input validator (shapes, finite values, signs)
