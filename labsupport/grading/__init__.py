@@ -1,19 +1,22 @@
-"""Checks behind the Problems' in-notebook feedback (the batch grader is instructor tooling: :mod:`labsupport.instructor`).
+"""Checks behind the Problems' in-notebook feedback (the batch grader is instructor tooling,
+outside what a student installs).
 
 In a notebook::
 
     from labsupport.grading import check
     check("p1_ik", globals())      # prints plain-words feedback on ik_3r
 
-``check`` runs the same check functions the batch grader runs; the grader runs them outside
-the submission's process (:mod:`labsupport.instructor.judge`), so nothing a notebook does to its
-own copy of labsupport or of the grader changes its grade.
+``check`` runs the same check functions the batch grader runs, with the public seed
+:data:`PUBLIC_SEED`; the batch grader draws its targets, states and circles from a secret seed
+of its own, and runs the checks outside the submission's process.
 
 Modules:
 
 ==================  ===================================================================
 ``feedback``        results, probes (how a check reaches student code), plain-words errors
-``common``          test states, mistake diagnosis, a simulation driven by student code
+``rules``           what a Problem TODO may use from labsupport, and how other uses are caught
+``common``          seeded test states, judging a torque against its formula, runs
+``stability``       why a run diverged: a too stiff damping for the time step, or the law
 ``problem1``        Problem 1 checks (IK, PD, CT, reach)
 ``problem2``        Problem 2 checks (start, OS-CT, IK + JS-CT, tracking)
 ==================  ===================================================================
@@ -22,16 +25,18 @@ Modules:
 from __future__ import annotations
 
 import os
-from typing import Callable
+from collections.abc import Callable
 
-from labsupport.grading.feedback import (NotImplementedYet, Result, StudentError, as_vector)
+from labsupport.grading.feedback import NotImplementedYet, Result, StudentError, as_vector
 
 #: Set in the batch grader's sandbox: in-notebook checks then stay quiet (the grader runs its own).
 BATCH_ENV = "LABSUPPORT_GRADING_BATCH"
+#: The seed of the in-notebook checks' targets, states and circles (the batch grader uses another).
+PUBLIC_SEED = 2024
 
 
 def registry() -> dict[str, Callable]:
-    """Every check, by name."""
+    """Every check, by name: ``check_fn(probe, seed) -> Result``."""
     from labsupport.grading import problem1, problem2
 
     return {**problem1.CHECKS, **problem2.CHECKS}
@@ -50,35 +55,64 @@ def check(name: str, namespace: dict) -> Result | None:
         return None
     from labsupport.grading.feedback import DirectProbe
 
-    result = checks[name](DirectProbe(namespace))
+    result = checks[name](DirectProbe(namespace), PUBLIC_SEED)
     print(result)
     return result
 
 
-def as_controller(fn: Callable, *args) -> Callable:
-    """Wrap a student's ``fn(model, data, *args)`` into a controller ``(model, data) -> tau`` for
-    :func:`labsupport.sim.simulate` that says plainly when ``fn`` is not implemented or returns a bad torque.
+class StudentController:
+    """A student's ``fn(model, data, *args)`` as a controller ``(model, data) -> tau`` for
+    :func:`labsupport.sim.simulate`, which says plainly when ``fn`` is not implemented or returns
+    a bad torque. ``args`` may also be a single function of the time returning the tuple."""
 
-    ``args`` may also be a single function of the time returning the tuple of arguments.
+    def __init__(self, fn: Callable, *args):
+        from labsupport.grading.stability import Trace
+
+        self.fn, self.args = fn, args
+        self.name = getattr(fn, "__name__", "the controller")
+        self.moving = len(args) == 1 and callable(args[0])
+        self.trace = Trace()  # the states of the last run, to explain a divergence
+
+    def __call__(self, model, data):
+        self.trace.record(data)
+        return self.torque(model, data)
+
+    def torque(self, model, data):
+        """The student's torque at ``data``, checked (nothing recorded)."""
+        extra = self.args[0](float(data.time)) if self.moving else self.args
+        return as_vector(self.name, self.fn(model, data, *extra), model.nu, "torque")
+
+
+def as_controller(fn: Callable, *args) -> StudentController:
+    """Wrap a student's ``fn(model, data, *args)`` into a controller (see :class:`StudentController`)."""
+    return StudentController(fn, *args)
+
+
+def attempt(label: str, run: Callable, controller: StudentController | None = None, model=None):
+    """Run ``run()`` (e.g. a simulation) and return its result, or print why it cannot run yet and return None.
+
+    With the run's ``controller`` (from :func:`as_controller`) and ``model``, a divergence is
+    explained: a damping too stiff for the time step is named as such, with its numbers and the
+    remedies.
     """
-    name = getattr(fn, "__name__", "the controller")
-    moving = len(args) == 1 and callable(args[0])
+    from labsupport.sim import SimulationDiverged
 
-    def controller(model, data):
-        extra = args[0](float(data.time)) if moving else args
-        return as_vector(name, fn(model, data, *extra), model.nu, "torque")
-
-    return controller
-
-
-def attempt(label: str, run: Callable):
-    """Run ``run()`` (e.g. a simulation) and return its result, or print why it cannot run yet and return None."""
     try:
         return run()
     except NotImplementedYet as err:
         print(f"{label}: skipped, {err}. Fill in the TODO above and run again.")
     except StudentError as err:
         print(f"{label}: skipped, {err}.")
+    except SimulationDiverged as err:
+        reason = None
+        if controller is not None and model is not None:
+            from labsupport.grading.stability import explain_divergence
+
+            reason = explain_divergence(model, controller.torque, controller.trace)
+        print(
+            f"{label}: the simulation diverged at t = {err.t:.3f} s: "
+            + (reason or f"{err.reason}. Lower the gains, clip the torque, or check the signs of the law.")
+        )
     except Exception as err:  # the student's code may raise anything
         print(f"{label}: skipped, it raised {type(err).__name__}: {err}")
     return None

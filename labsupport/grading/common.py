@@ -1,81 +1,346 @@
-r"""Pieces the Problems' checks share: test states, the arm's reference dynamics, diagnosis of a
-wrong torque by comparison with typical mistakes, and a simulation driven by a student's controller.
+r"""Pieces the Problems' checks share, none of them a reference solution.
+
+* Test configurations are drawn in **joint space** (seeded) and put through MuJoCo's forward
+  kinematics, so every target is reachable by construction and its joint angles are known
+  without inverse kinematics.
+* Every quantity of a stated formula (:math:`M`, :math:`h`, :math:`J`, :math:`\dot J\dot q`,
+  the tip position) comes from MuJoCo at the test state (:func:`terms`).
+* A student's torque is judged against the formula by :func:`judge_torque`: exact within
+  floating-point error, accepted as a sound approximation when only its :math:`\dot J\dot q`
+  is approximate, or matched against the typical mistakes, each named.
+* A run is the grader's own simulation of the arm under the student's controller
+  (:func:`run_student`).
 """
 
 from __future__ import annotations
 
-from typing import Callable
+import zlib
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import lru_cache
 
 import mujoco
 import numpy as np
 
-from labsupport.dynamics import bias_forces, mass_matrix
-from labsupport.grading.feedback import Probe, State, StudentError, as_vector
-from labsupport.kinematics import spatial_3r
+from labsupport.dynamics import bias_forces, mass_matrix, site_jacobian, site_jdot_qdot
+from labsupport.grading.feedback import Probe, State, StudentError, as_vector, show_pair
+from labsupport.grading.stability import Trace, explain_divergence
 from labsupport.plants import load_model
 from labsupport.sim import Log, SimulationDiverged, simulate
 
-#: Absolute and relative tolerance on a torque that should equal the reference [N·m].
+SITE = "end_effector"
+#: Shoulder (joint 2) of the 3R arm, the centre of its reachable ball of radius 2 m [m].
+SHOULDER = np.array([0.0, 0.0, 1.0])
+#: Torques equal to the formula within floating-point error [N·m] (absolute, relative).
 TORQUE_ATOL, TORQUE_RTOL = 1e-6, 1e-6
+#: A J̇q̇ approximated within this fraction of its size (finite differences) still counts as exact.
+JDOT_APPROX = 0.05
+#: How many control steps of a smooth motion lead up to each test state (so a function that
+#: remembers its previous call, e.g. J̇ by finite differences in time, sees what a run shows it).
+LEAD_IN = 4
 
 
-def arm():
-    """A fresh ``(model, data)`` of the 3R arm."""
-    return load_model("spatial_3r")
+@dataclass(frozen=True)
+class Margins:
+    """How far test configurations keep from the 3R arm's singularities and from angle wraps.
+
+    Attributes:
+        inner, outer: tip distance from the shoulder within [inner, outer] [m] (the arm folds
+            at 0 and stretches at 2).
+        axis: tip distance from the z axis at least this [m] (pan singularity).
+        height: tip height above the floor at least this [m].
+        wrap: pan angle and the elbow-up shoulder angle this far from ±π [rad].
+    """
+
+    inner: float = 0.35
+    outer: float = 1.75
+    axis: float = 0.35
+    height: float = 0.1
+    wrap: float = 0.35
 
 
-def dynamics_at(model, state: State):
-    r""":math:`M(q)` and :math:`h(q, \dot q)` at a state, from a scratch ``MjData``."""
+MARGINS = Margins()
+
+
+def rng_for(seed: int, check: str) -> np.random.Generator:
+    """The random generator of one check under one seed (each check draws its own stream)."""
+    return np.random.default_rng([int(seed), zlib.crc32(check.encode())])
+
+
+@lru_cache(maxsize=1)
+def arm_model() -> mujoco.MjModel:
+    """The 3R arm's MuJoCo model (loaded once; each use makes its own ``MjData``)."""
+    return load_model("spatial_3r")[0]
+
+
+def data_at(model: mujoco.MjModel, q, qdot=None, t: float = 0.0) -> mujoco.MjData:
+    """A fresh ``MjData`` at the state, ``mj_forward`` run."""
     data = mujoco.MjData(model)
-    data.qpos[:] = state.q
-    data.qvel[:] = state.qdot
-    data.time = state.t
+    data.qpos[:] = q
+    data.qvel[:] = 0.0 if qdot is None else qdot
+    data.time = t
     mujoco.mj_forward(model, data)
-    return mass_matrix(model, data), bias_forces(data), data
+    return data
 
 
-def random_states(seed: int, n: int, speed: float = 1.5) -> list[State]:
-    """``n`` seeded states: configurations reaching random targets (either elbow), random velocities."""
-    rng = np.random.default_rng(seed)
-    targets = spatial_3r.sample_targets(rng, n)
-    states = []
-    for k, x in enumerate(targets):
-        q = spatial_3r.inverse_kinematics(x, elbow_up=bool(k % 2 == 0))
-        states.append(State(q, rng.uniform(-speed, speed, 3), 0.0))
-    return states
+def tip(model: mujoco.MjModel, q) -> np.ndarray:
+    """End-effector position at ``q``: MuJoCo's forward kinematics (``mj_kinematics``)."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = q
+    mujoco.mj_kinematics(model, data)
+    return data.site(SITE).xpos.copy()
+
+
+def elbow_height(model: mujoco.MjModel, q) -> float:
+    """Signed distance of the elbow (joint 3) above the line from the shoulder to the tip, in the
+    arm's vertical plane: positive for the elbow-up branch, negative for elbow-down."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = q
+    mujoco.mj_kinematics(model, data)
+    shoulder, elbow, p = data.body("link2").xpos, data.body("link3").xpos, data.site(SITE).xpos
+    d = (p - shoulder) / np.linalg.norm(p - shoulder)
+    up = np.array([0.0, 0.0, 1.0]) - d[2] * d  # vertical, made perpendicular to the line
+    return float((elbow - shoulder) @ up / max(np.linalg.norm(up), 1e-12))
+
+
+def safe_point(x, margins: Margins = MARGINS) -> bool:
+    """Whether a tip position keeps the margins: reachable, off the z axis, above the floor, and
+    with the pan angle ``atan2(y, x)`` and the elbow-up shoulder angle away from ±π."""
+    x = np.asarray(x, dtype=float)
+    d = float(np.linalg.norm(x - SHOULDER))
+    rho = float(np.hypot(x[0], x[1]))
+    return (
+        margins.inner <= d <= margins.outer
+        and rho >= margins.axis
+        and x[2] >= margins.height
+        and abs(np.arctan2(x[1], x[0])) <= np.pi - margins.wrap
+        and np.arctan2(rho, x[2] - SHOULDER[2]) <= np.pi - margins.wrap
+    )
+
+
+def draw_configuration(rng: np.random.Generator, elbow_up: bool = True, margins: Margins = MARGINS) -> np.ndarray:
+    """A seeded joint configuration on the asked elbow branch whose tip keeps the margins.
+
+    Its pan angle is the tip's azimuth and its angles lie away from ±π, so it is *the* solution
+    the Problem's IK formula gives for its own tip (whatever range a student wraps angles to).
+    """
+    model = arm_model()
+    while True:
+        theta = rng.uniform(0.25, np.pi - 0.25)  # elbow angle: q3 = theta - pi/2 (elbow up) or its mirror
+        q3 = theta - np.pi / 2 if elbow_up else -theta - np.pi / 2
+        q = np.array(
+            [rng.uniform(-np.pi + margins.wrap, np.pi - margins.wrap), rng.uniform(-1.2, np.pi - margins.wrap), q3]
+        )
+        x = tip(model, q)
+        forward = x[:2] @ np.array([np.cos(q[0]), np.sin(q[0])]) > 0  # tip in front: azimuth = q1
+        if forward and safe_point(x, margins) and (elbow_height(model, q) > 0) == elbow_up:
+            return q
+
+
+def mirror_elbow(q) -> np.ndarray:
+    r"""The other elbow branch with the same tip: :math:`\theta = q_3 + \pi/2 \to -\theta`,
+    :math:`q_2 \to q_2 + \theta` (reflection of the elbow across the shoulder–tip line)."""
+    theta = q[2] + np.pi / 2
+    return np.array([q[0], q[1] + theta, -theta - np.pi / 2])
+
+
+@dataclass(frozen=True)
+class Terms:
+    """MuJoCo's quantities at one state of the 3R arm: :math:`M`, :math:`h`, the tip's
+    translational Jacobian :math:`J` (3×3), :math:`\\dot J\\dot q` (3,) and position :math:`x`."""
+
+    M: np.ndarray
+    h: np.ndarray
+    J: np.ndarray
+    jdq: np.ndarray
+    x: np.ndarray
+
+
+def terms(model: mujoco.MjModel, q, qdot, t: float = 0.0) -> Terms:
+    """:class:`Terms` at a state, from a scratch ``MjData``."""
+    data = data_at(model, q, qdot, t)
+    return Terms(
+        mass_matrix(model, data),
+        bias_forces(data),
+        site_jacobian(model, data, SITE)[:3].copy(),
+        site_jdot_qdot(model, data, SITE)[:3].copy(),
+        data.site(SITE).xpos.copy(),
+    )
+
+
+@dataclass(frozen=True)
+class Mistake:
+    """A typical wrong answer: the value it gives, what it means, and the score it keeps."""
+
+    value: np.ndarray
+    text: str
+    score: float
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """How a torque compares with the formula at one state."""
+
+    score: float
+    text: str  # empty when exact
+    jdot_error: float | None = None  # relative error of the implied J̇q̇, where it applies
 
 
 def close(a, b) -> bool:
+    """Equal within floating-point error (:data:`TORQUE_ATOL`, :data:`TORQUE_RTOL`)."""
     return bool(np.allclose(a, b, atol=TORQUE_ATOL, rtol=TORQUE_RTOL))
 
 
-def diagnose(got: np.ndarray, expected: np.ndarray, mistakes: dict[str, tuple[np.ndarray, str, float]]):
-    """Match a wrong value against typical mistakes.
+def judge_torque(
+    got: np.ndarray,
+    expected: np.ndarray,
+    mistakes: dict[str, Mistake],
+    implied_jdq: Callable[[np.ndarray], np.ndarray] | None = None,
+    jdq: np.ndarray | None = None,
+) -> Verdict:
+    r"""Judge a student's torque against the formula's at one state.
 
-    Args:
-        got, expected: the student's value and the right one.
-        mistakes: ``{key: (value_that_mistake_gives, explanation, partial_score)}``.
-
-    Returns:
-        ``(key, explanation, score)`` of the first mistake that reproduces ``got``, or
-        ``(None, generic explanation, 0)``.
+    1. Equal within floating-point error: right (``inv`` instead of ``solve`` lands here).
+    2. Where the law holds :math:`\dot J\dot q`: ``implied_jdq(got)`` is the :math:`\dot J\dot q`
+       the student's torque implies if everything else is exact. Within :data:`JDOT_APPROX` of
+       MuJoCo's ``jdq``: right (a finite-difference :math:`\dot J\dot q`, or a numerical IK, lands
+       here).
+    3. One of the named ``mistakes`` reproduces it: that mistake's score and explanation.
+    4. The implied :math:`\dot J\dot q` is closer to MuJoCo's than zero is (relative error
+       :math:`\varepsilon < 1`): an approximation of the term, scored :math:`1 - \varepsilon/2`,
+       never below leaving the term out (which scores 0.5).
+    5. Otherwise: zero, with both values printed to as many digits as tell them apart.
     """
-    for key, (value, text, score) in mistakes.items():
-        if close(got, value) and not close(value, expected):
-            return key, text, score
-    diff = float(np.max(np.abs(got - expected)))
-    with np.printoptions(precision=4, suppress=True):
-        return None, f"got {got}, expected {expected} (largest difference {diff:.3g})", 0.0
+    if close(got, expected):
+        return Verdict(1.0, "")
+    eps = None
+    if implied_jdq is not None and jdq is not None and np.linalg.norm(jdq) > 0:
+        eps = float(np.linalg.norm(implied_jdq(got) - jdq) / np.linalg.norm(jdq))
+        if eps <= JDOT_APPROX:
+            return Verdict(1.0, "", eps)
+    for m in mistakes.values():
+        if close(got, m.value) and not close(m.value, expected):
+            return Verdict(m.score, m.text, eps)
+    if eps is not None and eps < 1.0:
+        with np.printoptions(precision=4, suppress=True):
+            text = (
+                f"everything matches the formula except J̇q̇: your torque implies J̇q̇ ≈ {implied_jdq(got)}, "
+                f"MuJoCo's is {jdq} (off by {100 * eps:.0f} %); an approximation within "
+                f"{100 * JDOT_APPROX:g} % gets full marks"
+            )
+        return Verdict(1.0 - 0.5 * eps, text, eps)
+    return Verdict(0.0, show_pair(got, expected), eps)
 
 
-def student_controller(probe: Probe, fname: str, args) -> Callable:
+def degrees_mistake(value_in_radians: np.ndarray, text: str = "", score: float = 0.25) -> Mistake:
+    """The torque of a law computed with angles in degrees (180/π times the angle terms)."""
+    return Mistake(
+        value_in_radians,
+        text
+        or (
+            "your torque is 180/π ≈ 57.3 times the formula's feedback: "
+            "the angles were converted to degrees; MuJoCo works in radians"
+        ),
+        score,
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# test states
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Case:
+    """One test of a tracking law: the states leading up to the tested one, and the reference.
+
+    Attributes:
+        states: :data:`LEAD_IN` + 1 consecutive states, one control step apart (the last is tested).
+        q_d, qd_d, qdd_d: joint reference at each of those instants, shape (n, 3).
+        x_d, xd_d, xdd_d: its Cartesian image ``FK(q_d)``, :math:`J\\dot q_d`,
+            :math:`J\\ddot q_d + \\dot J\\dot q_d`, shape (n, 3).
+        Kp, Kd: gains.
+    """
+
+    states: tuple[State, ...]
+    q_d: np.ndarray
+    qd_d: np.ndarray
+    qdd_d: np.ndarray
+    x_d: np.ndarray
+    xd_d: np.ndarray
+    xdd_d: np.ndarray
+    Kp: float
+    Kd: float
+
+
+def cartesian_reference(model: mujoco.MjModel, q_d, qd_d, qdd_d):
+    r"""The Cartesian image of a joint reference: :math:`x_d = \mathrm{FK}(q_d)`,
+    :math:`\dot x_d = J\dot q_d`, :math:`\ddot x_d = J\ddot q_d + \dot J\dot q_d` (no IK needed)."""
+    T = terms(model, q_d, qd_d)
+    return T.x, T.J @ qd_d, T.J @ qdd_d + T.jdq
+
+
+def tracking_cases(seed: int, check: str, n: int = 4, gains=((30.0, 90.0), (8.0, 20.0))) -> list[Case]:
+    """``n`` seeded tests of a tracking law near an elbow-up joint reference.
+
+    Each reference is a smooth joint motion :math:`q_d(t)` (quadratic in time) around a drawn
+    configuration; the arm's state is the reference plus a small offset that also moves
+    smoothly, so consecutive states are what a simulation would hand the controller.
+    """
+    model = arm_model()
+    dt = model.opt.timestep
+    rng = rng_for(seed, check)
+    cases = []
+    for _ in range(n):
+        q_star = draw_configuration(rng, elbow_up=True)
+        v, a = rng.uniform(-1.5, 1.5, 3), rng.uniform(-3.0, 3.0, 3)
+        dq, dv = rng.uniform(-0.05, 0.05, 3), rng.uniform(-0.3, 0.3, 3)
+        t_star = float(rng.uniform(0.5, 5.0))
+        s = dt * np.arange(-LEAD_IN, 1)
+        q_d = q_star + np.outer(s, v) + 0.5 * np.outer(s**2, a)
+        qd_d = v + np.outer(s, a)
+        qdd_d = np.tile(a, (len(s), 1))
+        refs = np.array([np.concatenate(cartesian_reference(model, *k)) for k in zip(q_d, qd_d, qdd_d, strict=True)])
+        states = tuple(State(q_d[k] + dq + s[k] * dv, qd_d[k] + dv, t_star + float(s[k])) for k in range(len(s)))
+        cases.append(
+            Case(
+                states,
+                q_d,
+                qd_d,
+                qdd_d,
+                refs[:, :3],
+                refs[:, 3:6],
+                refs[:, 6:],
+                float(rng.uniform(*gains[0])),
+                float(rng.uniform(*gains[1])),
+            )
+        )
+    return cases
+
+
+def call_along(probe: Probe, fname: str, case: Case, args_at: Callable[[int], tuple]) -> np.ndarray:
+    """Call the student's ``fname`` at each state of ``case`` in order (arguments ``args_at(k)``
+    after the state) and return the torque of the last, the tested one."""
+    for k, state in enumerate(case.states):
+        tau = as_vector(fname, probe.call(fname, state, *args_at(k)), 3, "torque")
+    return tau
+
+
+# ---------------------------------------------------------------------------------------------
+# runs
+# ---------------------------------------------------------------------------------------------
+
+
+def student_controller(probe: Probe, fname: str, args, trace: Trace | None = None) -> Callable:
     """A controller ``(model, data) -> tau`` that asks the probe for the student's torque each step.
 
     ``args`` are the function's arguments after ``(model, data)``: a tuple, or a function of
-    the time returning the tuple (for a moving reference).
+    the time returning the tuple (for a moving reference). ``trace`` records the states.
     """
 
     def controller(model, data):
+        if trace is not None:
+            trace.record(data)
         extra = args(float(data.time)) if callable(args) else args
         value = probe.call(fname, State(data.qpos.copy(), data.qvel.copy(), float(data.time)), *extra)
         return as_vector(fname, value, model.nu, "torque")
@@ -83,19 +348,24 @@ def student_controller(probe: Probe, fname: str, args) -> Callable:
     return controller
 
 
-def run_student(probe: Probe, fname: str, args, duration: float, q0, qdot0=None,
-                reference=None) -> Log:
+def run_student(probe: Probe, fname: str, args, duration: float, q0, qdot0=None, reference=None) -> Log:
     """Simulate the 3R arm (the grader's own model and loop) under the student's controller.
 
     Raises:
-        StudentError: if the controller fails or the simulation diverges (message in plain words).
+        StudentError: if the controller fails or the simulation diverges; the message says why in
+            plain words (for a too stiff damping, with the numbers and the remedies).
     """
-    model, data = arm()
+    model = arm_model()
+    data = mujoco.MjData(model)
+    trace = Trace()
+    controller = student_controller(probe, fname, args, trace)
     try:
-        return simulate(model, data, student_controller(probe, fname, args), duration, q0=q0,
-                        qdot0=qdot0, site="end_effector", reference=reference)
+        return simulate(model, data, controller, duration, q0=q0, qdot0=qdot0, site=SITE, reference=reference)
     except SimulationDiverged as err:
-        raise StudentError(f"with {fname}, the simulation diverged at t = {err.t:.3f} s "
-                           "(the arm ran away): check signs and the mass matrix") from None
+        reason = explain_divergence(model, student_controller(probe, fname, args), trace)
+        raise StudentError(
+            f"with {fname}, the simulation diverged at t = {err.t:.3f} s: "
+            + (reason or "the arm ran away; check the signs of the feedback terms")
+        ) from None
     except ValueError as err:
         raise StudentError(f"{fname}: {err}") from None

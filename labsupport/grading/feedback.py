@@ -2,7 +2,8 @@ r"""What a check reports, and how the checks reach a student's code.
 
 A check never touches a student's function directly: it asks a :class:`Probe` to call it by
 name. :class:`DirectProbe` calls into a live namespace (the notebook's ``globals()``, for the
-in-notebook feedback); the batch grader's probe forwards the same calls to a separate process
+in-notebook feedback), watching that the call uses no part of labsupport a Problem TODO may not
+use (:mod:`labsupport.grading.rules`); the batch grader's probe forwards the same calls to a separate process
 that ran the submission (:mod:`labsupport.instructor.judge`). Either way the check gets plain
 arrays back, or a :class:`StudentError` whose message says in plain words what went wrong.
 
@@ -17,6 +18,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
+from labsupport.grading.rules import ForbiddenUse, call_watched, forbidden_message, is_forbidden_message
 
 PASS, PARTIAL, FAIL, NOT_IMPLEMENTED = "pass", "partial", "fail", "not implemented yet"
 
@@ -69,6 +72,49 @@ class NotImplementedYet(StudentError):
 
 class StudentTimeout(StudentError):
     """The student's code did not answer within the time limit."""
+
+
+class ForbiddenCall(StudentError):
+    """The student's function called into a part of labsupport a Problem TODO may not use
+    (:mod:`labsupport.grading.rules`); the message says which, in plain words."""
+
+
+def forbidden_reason(err: Exception) -> str | None:
+    """The plain-words reason if ``err`` reports a forbidden use of labsupport (caught here by the
+    probe, or raised by the batch sandbox's stubs and passed on as text), else ``None``."""
+    text = str(err)
+    if not isinstance(err, ForbiddenCall) and not is_forbidden_message(text):
+        return None
+    # the sandbox reports "fname raised RuntimeError: <reason>": keep the reason
+    head, sep, tail = text.partition("RuntimeError: ")
+    return tail if sep and is_forbidden_message(tail) else text
+
+
+def refused(name: str, label: str, err: StudentError) -> Result:
+    """The result of a check whose student function could not be used: not implemented yet,
+    a forbidden use of labsupport (zero, with the reason), or another plain-words problem."""
+    if isinstance(err, NotImplementedYet):
+        return not_implemented(name, f"{label}: {err}")
+    reason = forbidden_reason(err)
+    if reason is not None:
+        return failed(name, f"{label}: {reason}")
+    return failed(name, f"{label}: {err}")
+
+
+def show_pair(got, expected) -> str:
+    """``got … , expected …`` with enough digits that two different vectors never print alike,
+    and their relative difference."""
+    got, expected = np.asarray(got, dtype=float), np.asarray(expected, dtype=float)
+    precision = 4
+    while precision < 15:
+        with np.printoptions(precision=precision, suppress=True, floatmode="fixed"):
+            a, b = np.array2string(got), np.array2string(expected)
+        if a != b:
+            break
+        precision += 1
+    diff = float(np.linalg.norm(got - expected))
+    rel = diff / max(float(np.linalg.norm(expected)), 1e-12)
+    return f"got {a}, expected {b} (difference {diff:.3g}, {100 * rel:.3g} % of the expected value)"
 
 
 @dataclass(frozen=True)
@@ -151,11 +197,15 @@ class DirectProbe(Probe):
         if not callable(fn):
             raise StudentError(f"{fname} should be a function, but it is a {type(fn).__name__}")
         try:
-            value = fn(*self._expand(args), **kwargs)
+            value, used = call_watched(fn, *self._expand(args), **kwargs)
+        except ForbiddenUse as err:
+            raise ForbiddenCall(str(err)) from None
         except StudentError:
             raise
         except Exception as err:  # the student's code may raise anything
             raise StudentError(f"{fname} raised {type(err).__name__}: {err}") from None
+        if used is not None:
+            raise ForbiddenCall(forbidden_message(used))
         return _plain(value)
 
     def get(self, name: str):

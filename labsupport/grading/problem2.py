@@ -1,202 +1,325 @@
 r"""Checks of Problem 2 (tracking a 3-D circle with the 3R arm): the start on the circle,
-operational-space CT, IK + joint-space CT, and the tracking itself.
+operational-space CT, IK + joint-space CT, and the tracking itself. None needs a reference
+solution, nor an inverse kinematics.
 
 The student's notebook defines
 
-* ``q0_traj``: joint angles putting the tip on the circle's start point;
+* ``q0_traj``: joint angles putting the tip on the notebook circle's start point (elbow up);
+  checked through MuJoCo's forward kinematics;
 * ``ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd)``:
   :math:`\tau = M J^{-1}(\ddot x_d + K_d(\dot x_d - J\dot q) + K_p(x_d - x) - \dot J\dot q) + h`;
 * ``ct_ik_joint_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd)``: :math:`q_d = \mathrm{IK}(x_d)`,
   :math:`\dot q_d = J(q_d)^{-1}\dot x_d`, :math:`\ddot q_d = J(q_d)^{-1}(\ddot x_d - \dot J(q_d,\dot q_d)\dot q_d)`,
   then :math:`\tau = M(\ddot q_d + K_d(\dot q_d - \dot q) + K_p(q_d - q)) + h`.
+
+The laws are tested with a Cartesian reference made from a chosen joint reference
+(:func:`~labsupport.grading.common.tracking_cases`), so the expected IK + joint-CT torque is
+known without IK. The tracking run follows a seeded circle that starts at the tip of a drawn
+configuration, so it starts on the circle with no IK either.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from labsupport.grading.common import arm, close, diagnose, dynamics_at, run_student
-from labsupport.grading.feedback import (NotImplementedYet, Probe, Result, State, StudentError, as_vector,
-                                         failed, not_implemented, passed)
-from labsupport.kinematics import spatial_3r
+from labsupport.grading.common import (
+    MARGINS,
+    Mistake,
+    arm_model,
+    call_along,
+    draw_configuration,
+    elbow_height,
+    judge_torque,
+    mirror_elbow,
+    rng_for,
+    run_student,
+    safe_point,
+    terms,
+    tip,
+    tracking_cases,
+)
+from labsupport.grading.feedback import Probe, Result, StudentError, as_vector, failed, not_implemented, passed, refused
 from labsupport.metrics import rms_norm
-from labsupport.trajectories import circle_3d
+from labsupport.trajectories import circle_3d, circle_basis
 
-#: The Problem's numbers.
+#: The notebook's circle (the one ``q0_traj`` starts on).
 CENTER = np.array([1.0, 0.0, 1.5])  # circle centre [m]
 RADIUS = 0.3  # [m]
 NORMAL = np.array([0.0, 0.0, 1.0])
 FREQUENCY = 0.2  # [Hz]
-DURATION = 2 / FREQUENCY  # two turns [s]
 WN, ZETA = 8.0, 1.0
 KP, KD = WN**2, 2 * ZETA * WN
 RMS_TOL = 1e-3  # [m]
+START_TOL = 1e-4  # [m]
+#: The tracking check follows one turn of a seeded circle.
+TRACK_DURATION = 1 / FREQUENCY
+
+JDOT_HINT = (
+    'MuJoCo gives it: site_jdot_qdot(model, data, "end_effector")[:3]; a finite-difference '
+    "approximation within 5 % gets full marks"
+)
 
 
 def reference(t):
-    """The circle: position, velocity, acceleration at time ``t``."""
+    """The notebook's circle: position, velocity, acceleration at time ``t``."""
     return circle_3d(t, CENTER, RADIUS, NORMAL, FREQUENCY)
 
 
-def start_state():
-    r"""Start on the circle, moving with it: :math:`q_0 = \mathrm{IK}(x_d(0))`, :math:`\dot q_0 = J(q_0)^{-1}\dot x_d(0)`."""
-    ref0 = reference(0.0)
-    q0 = spatial_3r.inverse_kinematics(ref0.pos, elbow_up=True)
-    return q0, np.linalg.solve(spatial_3r.jacobian(q0), ref0.vel)
-
-
-def ik_joint_reference(x_d, xd_d, xdd_d):
-    r"""Joint reference from the Cartesian one (elbow up): :math:`q_d, \dot q_d, \ddot q_d`."""
-    q_d = spatial_3r.inverse_kinematics(x_d, elbow_up=True)
-    J = spatial_3r.jacobian(q_d)
-    qd_d = np.linalg.solve(J, xd_d)
-    qdd_d = np.linalg.solve(J, xdd_d - spatial_3r.jdot_qdot(q_d, qd_d))
-    return q_d, qd_d, qdd_d
-
-
-def _test_cases(seed: int, n: int = 4):
-    """States near the circle (perturbed from it) with the reference at a random time."""
-    rng = np.random.default_rng(seed)
-    cases = []
-    for _ in range(n):
-        t = float(rng.uniform(0, DURATION))
-        ref = reference(t)
-        q_d, qd_d, _ = ik_joint_reference(ref.pos, ref.vel, ref.acc)
-        state = State(q_d + rng.uniform(-0.05, 0.05, 3), qd_d + rng.uniform(-0.3, 0.3, 3), t)
-        cases.append((state, ref, float(rng.uniform(30, 90)), float(rng.uniform(8, 20))))
-    return cases
-
-
-def check_start(probe: Probe) -> Result:
-    """``q0_traj`` puts the tip on the circle's start point."""
-    name = "p2_start"
+def check_start(probe: Probe, seed: int) -> Result:
+    """``q0_traj`` puts the tip on the notebook circle's start point, elbow up (the seed plays no
+    part: ``q0_traj`` is a value computed for the notebook's own circle)."""
+    name, label = "p2_start", "start"
+    model = arm_model()
     try:
         q0 = as_vector("q0_traj", probe.get("q0_traj"), 3, "value")
-    except NotImplementedYet:
-        return not_implemented(name, "start: not implemented yet (q0_traj is None)")
     except StudentError as err:
-        return failed(name, f"start: {err}")
+        return refused(name, label, err)
     x0 = reference(0.0).pos
-    err = float(np.linalg.norm(spatial_3r.forward_kinematics(q0) - x0))
-    if err < 1e-6:
-        return passed(name, "start: q0_traj puts the end effector on the circle's start point.")
-    with np.printoptions(precision=3, suppress=True):
-        return failed(name, f"start: q0_traj puts the end effector {err:.3f} m from the circle's start point {x0}; "
-                            "solve the IK for x_d(0).")
+    err = float(np.linalg.norm(tip(model, q0) - x0))
+    with np.printoptions(precision=4, suppress=True):
+        if err <= START_TOL:
+            if elbow_height(model, q0) <= 0:
+                return failed(
+                    name,
+                    "start: q0_traj puts the end effector on the start point, but elbow down; "
+                    "the Problem starts elbow up (elbow_up=True).",
+                    0.5,
+                )
+            return passed(name, "start: q0_traj puts the end effector on the circle's start point, elbow up.")
+        if float(np.linalg.norm(tip(model, np.radians(q0)) - x0)) <= START_TOL:
+            return failed(name, f"start: q0_traj = {q0} is in degrees; MuJoCo works in radians.")
+        return failed(
+            name,
+            f"start: q0_traj puts the end effector {err:.4g} m from the circle's start point {x0}; "
+            "solve the IK for x_d(0).",
+        )
 
 
-def _os_terms(model, state, ref, Kp, Kd):
-    M, h, data = dynamics_at(model, state)
-    J = spatial_3r.jacobian(state.q)
-    x = spatial_3r.forward_kinematics(state.q)
-    jdq = spatial_3r.jdot_qdot(state.q, state.qdot)
-    fb = Kd * (ref.vel - J @ state.qdot) + Kp * (ref.pos - x)
-    return M, h, J, jdq, fb
+def _os_expected(T, state, x_d, xd_d, xdd_d, Kp, Kd):
+    """OS-CT's formula with MuJoCo's terms, and the J̇q̇ a torque implies (everything else exact)."""
+    fb = Kd * (xd_d - T.J @ state.qdot) + Kp * (x_d - T.x)
+    expected = T.M @ np.linalg.solve(T.J, xdd_d + fb - T.jdq) + T.h
+
+    def implied_jdq(tau):
+        return xdd_d + fb - T.J @ np.linalg.solve(T.M, tau - T.h)
+
+    return expected, implied_jdq, fb
 
 
-def check_os_ct(probe: Probe) -> Result:
-    """``ct_op_torque`` against the operational-space computed torque at states near the circle."""
-    name = "p2_osct"
-    model, _ = arm()
-    for state, ref, Kp, Kd in _test_cases(41):
-        M, h, J, jdq, fb = _os_terms(model, state, ref, Kp, Kd)
-        expected = M @ np.linalg.solve(J, ref.acc + fb - jdq) + h
+def _os_mistakes(T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
+    M, h, J, jdq = T.M, T.h, T.J, T.jdq
+    e, edot = x_d - T.x, xd_d - J @ state.qdot
+
+    def law(a):
+        return M @ np.linalg.solve(J, a) + h
+
+    return {
+        "no_jdot": Mistake(
+            law(xdd_d + fb),
+            "everything is right except the −J̇q̇ term, which is missing. The lab's hint "
+            "allows dropping it as a simplification, but the formula of this Problem has it: without "
+            f"it the Cartesian error is no longer exactly linear. {JDOT_HINT}.",
+            0.5,
+        ),
+        "jdot_sign": Mistake(law(xdd_d + fb + jdq), "J̇q̇ must be subtracted: ẍ = J q̈ + J̇q̇, so J q̈ = ẍ − J̇q̇.", 0.25),
+        "no_bias": Mistake(law(xdd_d + fb - jdq) - h, "the bias term h(q, q̇) = data.qfrc_bias is missing.", 0.25),
+        "no_mass": Mistake(
+            np.linalg.solve(J, xdd_d + fb - jdq) + h, "the mass matrix is missing: τ = M(q) J⁻¹(...) + h.", 0.25
+        ),
+        "transpose": Mistake(M @ (J.T @ (xdd_d + fb - jdq)) + h, "use J⁻¹ (np.linalg.solve(J, v)), not Jᵀ.", 0.0),
+        "no_ff": Mistake(law(fb - jdq), "the feed-forward acceleration ẍ_d is missing.", 0.25),
+        "sign": Mistake(law(xdd_d - fb - jdq), "the feedback has the wrong sign: e = x_d − x, ė = ẋ_d − J q̇.", 0.0),
+        "spring_sign": Mistake(
+            law(xdd_d + Kd * edot - Kp * e - jdq),
+            "the spring term has the wrong sign: Kp (x_d − x), not Kp (x − x_d); the damping term is right.",
+            0.0,
+        ),
+        "damping_sign": Mistake(
+            law(xdd_d - Kd * edot + Kp * e - jdq), "the damping has the wrong sign: Kd (ẋ_d − J q̇).", 0.5
+        ),
+        "no_damping": Mistake(law(xdd_d + Kp * e - jdq), "the damping term Kd (ẋ_d − J q̇) is missing.", 0.5),
+    }
+
+
+def check_os_ct(probe: Probe, seed: int) -> Result:
+    """``ct_op_torque`` against the operational-space computed torque at seeded states."""
+    name, label, fname = "p2_osct", "OS-CT", "ct_op_torque"
+    model = arm_model()
+    worst = 0.0
+    for case in tracking_cases(seed, name):
         try:
-            tau = as_vector("ct_op_torque", probe.call("ct_op_torque", state, ref.pos, ref.vel, ref.acc, Kp, Kd),
-                            3, "torque")
-        except NotImplementedYet:
-            return not_implemented(name, "OS-CT: not implemented yet (ct_op_torque returned None)")
+            tau = call_along(probe, fname, case, lambda k, c=case: (c.x_d[k], c.xd_d[k], c.xdd_d[k], c.Kp, c.Kd))
         except StudentError as err:
-            return failed(name, f"OS-CT: {err}")
-        if not close(tau, expected):
-            mistakes = {
-                "no_jdot": (M @ np.linalg.solve(J, ref.acc + fb) + h,
-                            "everything is right except the −J̇q̇ term, which is missing (the lab allows dropping "
-                            "it, but then the error dynamics are no longer exactly linear).", 0.5),
-                "no_bias": (M @ np.linalg.solve(J, ref.acc + fb - jdq),
-                            "the bias term h(q, q̇) = data.qfrc_bias is missing.", 0.25),
-                "no_mass": (np.linalg.solve(J, ref.acc + fb - jdq) + h,
-                            "the mass matrix is missing: τ = M(q) J⁻¹(...) + h.", 0.25),
-                "transpose": (M @ (J.T @ (ref.acc + fb - jdq)) + h,
-                              "use J⁻¹ (np.linalg.solve(J, v)), not Jᵀ.", 0.0),
-                "no_ff": (M @ np.linalg.solve(J, fb - jdq) + h,
-                          "the feed-forward acceleration ẍ_d is missing.", 0.25),
-            }
-            _, text, score = diagnose(tau, expected, mistakes)
-            return failed(name, f"OS-CT: {text}", score)
-    return passed(name, "OS-CT: ct_op_torque gives M J⁻¹(ẍ_d + Kd ė + Kp e − J̇q̇) + h at every test state.")
+            return refused(name, label, err)
+        state = case.states[-1]
+        T = terms(model, state.q, state.qdot, state.t)
+        ref = (case.x_d[-1], case.xd_d[-1], case.xdd_d[-1], case.Kp, case.Kd)
+        expected, implied, fb = _os_expected(T, state, *ref)
+        verdict = judge_torque(tau, expected, _os_mistakes(T, state, *ref, fb), implied, T.jdq)
+        if verdict.score < 1:
+            return failed(name, f"{label}: {verdict.text}", verdict.score)
+        worst = max(worst, verdict.jdot_error or 0.0)
+    note = f" Your J̇q̇ is an approximation (within {100 * worst:.2g} % of MuJoCo's): accepted." if worst > 1e-6 else ""
+    return passed(name, "OS-CT: ct_op_torque gives M J⁻¹(ẍ_d + Kd ė + Kp e − J̇q̇) + h at every test state." + note)
 
 
-def check_ik_ct(probe: Probe) -> Result:
-    """``ct_ik_joint_torque`` against IK + joint-space computed torque at states near the circle."""
-    name = "p2_ikct"
-    model, _ = arm()
-    for state, ref, Kp, Kd in _test_cases(51):
-        M, h, _ = dynamics_at(model, state)
-        q_d, qd_d, qdd_d = ik_joint_reference(ref.pos, ref.vel, ref.acc)
-        expected = M @ (qdd_d + Kd * (qd_d - state.qdot) + Kp * (q_d - state.q)) + h
+def _joint_reference_terms(model, q_d, xd_d, xdd_d):
+    r""":math:`\dot q_d = J(q_d)^{-1}\dot x_d`, :math:`\ddot q_d = J(q_d)^{-1}(\ddot x_d - \dot J\dot q_d)` for a
+    given :math:`q_d` (what a student's IK + joint CT does after its IK)."""
+    J = terms(model, q_d, np.zeros(3)).J
+    qd_d = np.linalg.solve(J, xd_d)
+    jdq = terms(model, q_d, qd_d).jdq
+    return qd_d, np.linalg.solve(J, xdd_d - jdq)
+
+
+def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
+    M, h, q, qdot = T.M, T.h, state.q, state.qdot
+    Td = terms(model, q_d, qd_d)
+
+    def law(qdd, qd=qd_d, qq=q_d):
+        return M @ (qdd + Kd * (qd - qdot) + Kp * (qq - q)) + h
+
+    fb = Kd * (qd_d - qdot) + Kp * (q_d - q)
+    qd_now = np.linalg.solve(T.J, xd_d)
+    q_down = mirror_elbow(q_d)
+    qd_down, qdd_down = _joint_reference_terms(model, q_down, xd_d, xdd_d)
+    return {
+        "no_jdot": Mistake(
+            law(np.linalg.solve(Td.J, xdd_d)),
+            f"everything is right except the J̇(q_d, q̇_d) q̇_d term in q̈_d, which is missing. {JDOT_HINT} (at q_d, q̇_d).",
+            0.5,
+        ),
+        "no_bias": Mistake(M @ (qdd_d + fb), "the bias term h(q, q̇) = data.qfrc_bias is missing.", 0.25),
+        "no_mass": Mistake(qdd_d + fb + h, "the mass matrix is missing: τ = M(q)(...) + h.", 0.25),
+        "no_ff": Mistake(M @ fb + h, "the feed-forward acceleration q̈_d is missing.", 0.25),
+        "sign": Mistake(M @ (qdd_d - fb) + h, "the feedback has the wrong sign: e = q_d − q.", 0.0),
+        "spring_sign": Mistake(
+            law(qdd_d, qq=2 * q - q_d),
+            "the spring term has the wrong sign: Kp (q_d − q), not Kp (q − q_d); the damping term is right.",
+            0.0,
+        ),
+        "current_state": Mistake(
+            law(np.linalg.solve(T.J, xdd_d - T.jdq), qd=qd_now),
+            "q̇_d and q̈_d use J and J̇q̇ at the arm's state (q, q̇); the reference needs them at "
+            "(q_d, q̇_d): J(q_d)⁻¹ ẋ_d and J(q_d)⁻¹(ẍ_d − J̇(q_d, q̇_d) q̇_d). The two agree "
+            "once the arm is on the reference, so it still tracks.",
+            0.75,
+        ),
+        "elbow_down": Mistake(
+            law(qdd_down, qd=qd_down, qq=q_down),
+            "the IK returns the elbow-down branch, but the arm runs elbow up (elbow_up=True).",
+            0.0,
+        ),
+    }
+
+
+def check_ik_ct(probe: Probe, seed: int) -> Result:
+    """``ct_ik_joint_torque`` against IK + joint-space computed torque at seeded states."""
+    name, label, fname = "p2_ikct", "IK+JS-CT", "ct_ik_joint_torque"
+    model = arm_model()
+    worst = 0.0
+    for case in tracking_cases(seed, name):
         try:
-            tau = as_vector("ct_ik_joint_torque",
-                            probe.call("ct_ik_joint_torque", state, ref.pos, ref.vel, ref.acc, Kp, Kd), 3, "torque")
-        except NotImplementedYet:
-            return not_implemented(name, "IK+JS-CT: not implemented yet (ct_ik_joint_torque returned None)")
+            tau = call_along(probe, fname, case, lambda k, c=case: (c.x_d[k], c.xd_d[k], c.xdd_d[k], c.Kp, c.Kd))
         except StudentError as err:
-            return failed(name, f"IK+JS-CT: {err}")
-        if not close(tau, expected):
-            J_d = spatial_3r.jacobian(q_d)
-            no_jdot = np.linalg.solve(J_d, ref.acc)
-            q_down = spatial_3r.inverse_kinematics(ref.pos, elbow_up=False)
-            mistakes = {
-                "no_jdot": (M @ (no_jdot + Kd * (qd_d - state.qdot) + Kp * (q_d - state.q)) + h,
-                            "everything is right except the J̇(q_d, q̇_d) q̇_d term in q̈_d, which is missing.", 0.5),
-                "no_bias": (expected - h, "the bias term h(q, q̇) = data.qfrc_bias is missing.", 0.25),
-                "no_mass": (qdd_d + Kd * (qd_d - state.qdot) + Kp * (q_d - state.q) + h,
-                            "the mass matrix is missing: τ = M(q)(...) + h.", 0.25),
-                "no_ff": (M @ (Kd * (qd_d - state.qdot) + Kp * (q_d - state.q)) + h,
-                          "the feed-forward acceleration q̈_d is missing.", 0.25),
-                "elbow_down": (M @ (Kp * (q_down - state.q)) + h,
-                               "the IK uses the elbow-down branch, but the arm runs elbow-up.", 0.0),
-            }
-            key, text, score = diagnose(tau, expected, mistakes)
-            if key is None:
-                # the elbow-down branch changes every term; recognise it by the position error alone
-                text = ("the torque differs from IK + joint CT: check q_d = IK(x_d) (elbow up), "
-                        "q̇_d = J(q_d)⁻¹ ẋ_d and q̈_d = J(q_d)⁻¹(ẍ_d − J̇ q̇_d); " + text)
-            return failed(name, f"IK+JS-CT: {text}", score)
-    return passed(name, "IK+JS-CT: ct_ik_joint_torque matches IK + joint-space computed torque at every test state.")
+            return refused(name, label, err)
+        state = case.states[-1]
+        T = terms(model, state.q, state.qdot, state.t)
+        q_d, qd_d, qdd_d = case.q_d[-1], case.qd_d[-1], case.qdd_d[-1]
+        x_d, xd_d, xdd_d = case.x_d[-1], case.xd_d[-1], case.xdd_d[-1]
+        Kp, Kd = case.Kp, case.Kd
+        expected = T.M @ (qdd_d + Kd * (qd_d - state.qdot) + Kp * (q_d - state.q)) + T.h
+        Td = terms(model, q_d, qd_d)
+
+        def implied_jdq(tau, T=T, Td=Td, q_d=q_d, qd_d=qd_d, xdd_d=xdd_d, Kp=Kp, Kd=Kd, state=state):
+            qdd = np.linalg.solve(T.M, tau - T.h) - Kd * (qd_d - state.qdot) - Kp * (q_d - state.q)
+            return xdd_d - Td.J @ qdd
+
+        mistakes = _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd)
+        verdict = judge_torque(tau, expected, mistakes, implied_jdq, Td.jdq)
+        if verdict.score < 1:
+            text = verdict.text
+            if verdict.score == 0 and text.startswith("got"):
+                text = (
+                    "the torque differs from IK + joint CT: check q_d = IK(x_d) (elbow up), q̇_d = J(q_d)⁻¹ ẋ_d "
+                    "and q̈_d = J(q_d)⁻¹(ẍ_d − J̇(q_d, q̇_d) q̇_d); " + text
+                )
+            return failed(name, f"{label}: {text}", verdict.score)
+        worst = max(worst, verdict.jdot_error or 0.0)
+    note = (
+        f" Your reference is an approximation (its J̇q̇ within {100 * worst:.2g} % of MuJoCo's): accepted."
+        if worst > 1e-6
+        else ""
+    )
+    return passed(
+        name, "IK+JS-CT: ct_ik_joint_torque matches IK + joint-space computed torque at every test state." + note
+    )
 
 
-def check_tracking(probe: Probe) -> Result:
-    """Both of the student's controllers track two turns of the circle with RMS error below 1 mm."""
+def tracking_circle(seed: int):
+    """A seeded circle (centre, radius, normal), its start configuration ``q0`` (elbow up) and
+    ``qdot0`` moving with it; the whole circle keeps the margins of
+    :func:`~labsupport.grading.common.safe_point`.
+
+    The circle is built around ``q0``, so no IK is needed: :math:`x_0 = \\mathrm{FK}(q_0)`, a
+    random normal :math:`n` with in-plane basis :math:`u, v`, radius :math:`\\rho`, centre
+    :math:`x_0 - \\rho u` (the circle's point at :math:`t = 0` is :math:`x_0`).
+    """
+    model = arm_model()
+    rng = rng_for(seed, "p2_track")
+    phases = np.linspace(0.0, 2 * np.pi, 181)
+    while True:
+        q0 = draw_configuration(rng, elbow_up=True)
+        normal = rng.normal(size=3)
+        normal /= np.linalg.norm(normal)
+        radius = float(rng.uniform(0.15, 0.3))
+        u, v = circle_basis(normal)
+        center = tip(model, q0) - radius * u
+        points = center + radius * (np.cos(phases)[:, None] * u + np.sin(phases)[:, None] * v)
+        if all(safe_point(p, MARGINS) for p in points):
+            break
+    J0 = terms(model, q0, np.zeros(3)).J
+    qdot0 = np.linalg.solve(J0, circle_3d(0.0, center, radius, normal, FREQUENCY).vel)
+    return center, radius, normal, q0, qdot0
+
+
+def check_tracking(probe: Probe, seed: int) -> Result:
+    """Both of the student's controllers track one turn of a seeded circle with RMS error below
+    1 mm, starting on it and moving with it."""
     name = "p2_track"
-    q0, qdot0 = start_state()
-    score, notes = 0.0, []
+    center, radius, normal, q0, qdot0 = tracking_circle(seed)
+
+    def ref(t):
+        return circle_3d(t, center, radius, normal, FREQUENCY)
+
+    def args(t):
+        r = ref(t)
+        return r.pos, r.vel, r.acc, KP, KD
+
+    score, notes, statuses = 0.0, [], []
     for fname, label in (("ct_op_torque", "OS-CT"), ("ct_ik_joint_torque", "IK+JS-CT")):
         try:
-            log = run_student(probe, fname, _controller_args, DURATION, q0, qdot0, reference=reference)
-        except NotImplementedYet:
-            notes.append(f"{label}: not implemented yet ({fname} returned None)")
-            continue
+            log = run_student(probe, fname, args, TRACK_DURATION, q0, qdot0, reference=ref)
         except StudentError as err:
-            notes.append(f"{label}: {err}")
+            result = refused(name, label, err)
+            notes.append(result.message)
+            statuses.append(result.status)
             continue
         err = rms_norm(log.err)
+        statuses.append("ran")
         if err < RMS_TOL:
             score += 0.5
             notes.append(f"{label}: RMS error {err * 1e3:.3g} mm (needs < 1 mm)")
         else:
-            notes.append(f"{label}: RMS error {err * 1e3:.2f} mm, should be below 1 mm")
-    text = "tracking: " + "; ".join(notes) + "."
+            notes.append(f"{label}: RMS error {err * 1e3:.4g} mm, should be below 1 mm")
+    with np.printoptions(precision=3, suppress=True):
+        where = f"one turn of a circle of radius {radius:.3f} m about {center}, normal {normal}"
+    text = f"tracking ({where}): " + "; ".join(notes) + "."
     if score == 1.0:
         return passed(name, text)
-    if score == 0 and all("not implemented yet" in n for n in notes):
+    if score == 0 and all(s == "not implemented yet" for s in statuses):
         return not_implemented(name, text)
     return failed(name, text, score)
 
-
-def _controller_args(t):
-    """The controllers' arguments after ``(model, data)`` at time ``t``: the reference and the gains."""
-    ref = reference(t)
-    return ref.pos, ref.vel, ref.acc, KP, KD
 
 CHECKS = {"p2_start": check_start, "p2_osct": check_os_ct, "p2_ikct": check_ik_ct, "p2_track": check_tracking}
