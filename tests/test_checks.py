@@ -1,0 +1,587 @@
+"""The Problems' checks, graded through DirectProbe: the masters' hand-written solutions, blank
+TODOs, typical mistakes (each named), unusual but correct solutions, forbidden calls into
+labsupport, secret seeds, and the student's package holding no answer."""
+
+import ast
+import importlib
+import inspect
+import pkgutil
+import sys
+from pathlib import Path
+
+import mujoco
+import nbformat
+import numpy as np
+import pytest
+
+import labsupport
+import labsupport.controllers.joint_space as joint_space_alias
+from labsupport.dynamics import bias_forces, mass_matrix, site_jacobian, site_jdot_qdot
+from labsupport.grading import PUBLIC_SEED, check, common, problem1, problem2, registry, rules
+from labsupport.grading.feedback import FAIL, NOT_IMPLEMENTED, PASS, DirectProbe, Probe, State, show_pair
+from labsupport.grading.stability import stiff_damping
+from labsupport.kinematics.planar_2r import inverse_kinematics as planar_ik
+
+ROOT = Path(__file__).resolve().parents[1]
+OTHER_SEED = 918273
+SITE = "end_effector"
+
+
+# --- solutions, written the way students write them ---------------------------------------------
+
+
+def namespace_of(notebook: Path) -> dict:
+    """Run a Problem notebook's code cells up to its last TODO (check cells and IPython magics
+    left out) and return its namespace: the functions a check grades."""
+    nb = nbformat.read(str(notebook), as_version=4)
+    cells = [c.source for c in nb.cells if c.cell_type == "code" and not c.source.startswith("check(")]
+    last = max(k for k, src in enumerate(cells) if "TODO" in src or "BEGIN SOLUTION" in src)
+    ns: dict = {"__name__": "__student__"}
+    for src in cells[: last + 1]:
+        exec("\n".join(line for line in src.split("\n") if not line.lstrip().startswith("%")), ns)
+    return ns
+
+
+@pytest.fixture(scope="module")
+def master1():
+    return namespace_of(ROOT / "notebooks" / "masters" / "problem1_reaching.ipynb")
+
+
+@pytest.fixture(scope="module")
+def master2():
+    return namespace_of(ROOT / "notebooks" / "masters" / "problem2_tracking.ipynb")
+
+
+def grade(name: str, seed: int = PUBLIC_SEED, **functions):
+    return registry()[name](DirectProbe(functions), seed)
+
+
+def jacobian_at(model, q, qdot=None):
+    """J and Jdot qdot of the tip at (q, qdot) on a scratch MjData, as a student computes them."""
+    d = mujoco.MjData(model)
+    d.qpos[:] = q
+    d.qvel[:] = 0 if qdot is None else qdot
+    mujoco.mj_kinematics(model, d)
+    mujoco.mj_comPos(model, d)
+    mujoco.mj_comVel(model, d)
+    return site_jacobian(model, d, SITE)[:3].copy(), site_jdot_qdot(model, d, SITE)[:3]
+
+
+def tip_at(model, q):
+    d = mujoco.MjData(model)
+    d.qpos[:] = q
+    mujoco.mj_kinematics(model, d)
+    return d.site(SITE).xpos.copy()
+
+
+def newton_ik(x, elbow_up=True):
+    """Numerical IK: Newton's method on MuJoCo's forward kinematics, restarted until it lands on the
+    asked branch (elbow up: theta = q3 + pi/2 in (0, pi), i.e. cos q3 > 0)."""
+    model = common.arm_model()
+    x = np.asarray(x, float)
+    for q3 in (0.5, -0.5, 1.2, -1.2, 0.0):
+        q = np.array([np.arctan2(x[1], x[0]), 0.3, q3 if elbow_up else -np.pi - q3])
+        for _ in range(50):
+            err = x - tip_at(model, q)
+            if np.linalg.norm(err) < 1e-12:
+                break
+            J, _ = jacobian_at(model, q)
+            q = q + np.linalg.lstsq(J, err, rcond=None)[0]
+        if np.linalg.norm(x - tip_at(model, q)) < 1e-9 and (np.cos(q[2]) > 0) == elbow_up:
+            return q
+    raise ValueError(f"no solution for {x}")
+
+
+def os_law(model, data, x_d, xd_d, xdd_d, Kp, Kd, jdq=None, *, inv=False):
+    """OS-CT written out; ``jdq`` replaces MuJoCo's Jdot qdot (None: MuJoCo's)."""
+    M, h = mass_matrix(model, data), bias_forces(data)
+    J = site_jacobian(model, data, SITE)[:3]
+    jdq = site_jdot_qdot(model, data, SITE)[:3] if jdq is None else jdq
+    a = xdd_d + Kd * (xd_d - J @ data.qvel) + Kp * (x_d - data.site(SITE).xpos) - jdq
+    return M @ (np.linalg.inv(J) @ a if inv else np.linalg.solve(J, a)) + h
+
+
+def ik_ct_law(model, data, x_d, xd_d, xdd_d, Kp, Kd, ik=newton_ik, jdq_of=None):
+    """IK + joint CT with a given IK; ``jdq_of(J_d, q_d, qd_d)`` replaces MuJoCo's Jdot qdot at the reference."""
+    q_d = ik(x_d, elbow_up=True)
+    J_d, _ = jacobian_at(model, q_d)
+    qd_d = np.linalg.solve(J_d, xd_d)
+    jdq = jacobian_at(model, q_d, qd_d)[1] if jdq_of is None else jdq_of(J_d, q_d, qd_d)
+    qdd_d = np.linalg.solve(J_d, xdd_d - jdq)
+    M, h = mass_matrix(model, data), bias_forces(data)
+    return M @ (qdd_d + Kd * (qd_d - data.qvel) + Kp * (q_d - data.qpos)) + h
+
+
+class TimeDifference:
+    """Jdot by finite differences in time: remembers the previous call's J (reset when time goes back)."""
+
+    def __init__(self):
+        self.J = self.t = None
+
+    def jdq(self, J, qdot, t):
+        fresh = self.t is None or not (0 < t - self.t <= 0.01)
+        value = np.zeros(3) if fresh else (J - self.J) / (t - self.t) @ qdot
+        self.J, self.t = J.copy(), t
+        return value
+
+
+def os_fd_time():
+    memory = TimeDifference()
+
+    def ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        J = site_jacobian(model, data, SITE)[:3]
+        return os_law(model, data, x_d, xd_d, xdd_d, Kp, Kd, memory.jdq(J, data.qvel, data.time), inv=True)
+
+    return ct_op_torque
+
+
+def os_fd_configuration(model, data, x_d, xd_d, xdd_d, Kp, Kd, eps=1e-6):
+    """Jdot qdot = (J(q + eps qdot) - J(q)) / eps qdot: finite differences along the motion."""
+    J, _ = jacobian_at(model, data.qpos)
+    J2, _ = jacobian_at(model, data.qpos + eps * data.qvel)
+    return os_law(model, data, x_d, xd_d, xdd_d, Kp, Kd, (J2 - J) / eps @ data.qvel)
+
+
+def os_no_jdot(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+    return os_law(model, data, x_d, xd_d, xdd_d, Kp, Kd, np.zeros(3))
+
+
+def ik_ct_fd_time(ik=newton_ik):
+    memory = TimeDifference()
+
+    def ct_ik_joint_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        def jdq_of(J_d, q_d, qd_d):
+            return memory.jdq(J_d, qd_d, data.time)
+
+        return ik_ct_law(model, data, x_d, xd_d, xdd_d, Kp, Kd, ik=ik, jdq_of=jdq_of)
+
+    return ct_ik_joint_torque
+
+
+# --- the masters earn full marks; blanks are "not implemented yet" ----------------------------------
+
+
+@pytest.mark.parametrize("seed", [PUBLIC_SEED, OTHER_SEED])
+def test_masters_get_full_marks(master1, master2, seed):
+    for name, fn in registry().items():
+        ns = master1 if name.startswith("p1") else master2
+        result = fn(DirectProbe(ns), seed)
+        assert result.status == PASS and result.score == 1.0, result
+
+
+def test_masters_write_the_laws_by_hand():
+    """No master imports labsupport's controllers or kinematics: the solutions are written out."""
+    for name in ("problem1_reaching", "problem2_tracking"):
+        nb = nbformat.read(str(ROOT / "notebooks" / "masters" / f"{name}.ipynb"), as_version=4)
+        imported = []
+        for cell in nb.cells:
+            if cell.cell_type == "code":
+                code = "\n".join(line for line in cell.source.split("\n") if not line.lstrip().startswith("%"))
+                for node in ast.walk(ast.parse(code)):
+                    if isinstance(node, ast.Import):
+                        imported += [alias.name for alias in node.names]
+                    elif isinstance(node, ast.ImportFrom):
+                        imported += [node.module] + [f"{node.module}.{alias.name}" for alias in node.names]
+        assert "labsupport.dynamics.mass_matrix" in imported
+        assert not [m for m in imported if rules.is_forbidden_module(m)], imported
+
+
+def test_blank_notebooks_are_not_implemented_yet():
+    ns1 = namespace_of(ROOT / "notebooks" / "problem1_reaching.ipynb")
+    ns2 = namespace_of(ROOT / "notebooks" / "problem2_tracking.ipynb")
+    for name, fn in registry().items():
+        result = fn(DirectProbe(ns1 if name.startswith("p1") else ns2), PUBLIC_SEED)
+        assert result.status == NOT_IMPLEMENTED and result.score == 0, result
+        assert "not implemented yet" in result.message
+
+
+def test_in_notebook_check_uses_the_public_seed(master1, capsys):
+    result = check("p1_ct", master1)
+    assert result.score == 1 and "✔ [p1_ct]" in capsys.readouterr().out
+    assert result == problem1.check_ct(DirectProbe(master1), PUBLIC_SEED)
+
+
+# --- typical mistakes, each named ----------------------------------------------------------------
+
+
+def pd_variant(spring=1.0, damping=-1.0, scale=1.0, bias=False):
+    def pd_torque(model, data, q_d, Kp, Kd):
+        tau = scale * (spring * Kp * (q_d - data.qpos) + damping * Kd * data.qvel)
+        return tau + bias_forces(data) if bias else tau
+
+    return pd_torque
+
+
+@pytest.mark.parametrize(
+    "fn, score, words",
+    [
+        (pd_variant(spring=-1.0, damping=1.0), 0.0, "wrong sign: it pushes away"),
+        (pd_variant(spring=-1.0), 0.0, "spring term has the wrong sign"),
+        (pd_variant(damping=0.0), 0.5, "damping term −Kd q̇ is missing"),
+        (pd_variant(damping=1.0), 0.5, "damping has the wrong sign"),
+        (pd_variant(bias=True), 0.5, "computed torque's model term"),
+        (pd_variant(scale=180 / np.pi), 0.25, "degrees"),
+    ],
+)
+def test_pd_mistakes_are_named(fn, score, words):
+    result = grade("p1_pd", pd_torque=fn)
+    assert result.score == score and words in result.message, result
+
+
+def ct_variant(spring=1.0, damping=-1.0, mass=True, bias=1.0, scale=1.0, damping_outside=False):
+    def ct_joint_torque(model, data, q_d, Kp, Kd):
+        M = mass_matrix(model, data) if mass else np.eye(3)
+        v = scale * (spring * Kp * (q_d - data.qpos) + (0 if damping_outside else damping * Kd * data.qvel))
+        extra = damping * Kd * data.qvel if damping_outside else 0
+        return M @ v + extra + bias * bias_forces(data)
+
+    return ct_joint_torque
+
+
+@pytest.mark.parametrize(
+    "fn, score, words",
+    [
+        (ct_variant(bias=0.0), 0.25, "bias term h(q, q̇)"),
+        (ct_variant(mass=False), 0.25, "mass matrix is missing"),
+        (ct_variant(spring=-1.0), 0.0, "spring term has the wrong sign"),
+        (ct_variant(spring=-1.0, damping=1.0), 0.0, "feedback has the wrong sign"),
+        (ct_variant(bias=-1.0), 0.25, "added, not subtracted"),
+        (ct_variant(damping_outside=True), 0.5, "inside M(q)"),
+        (ct_variant(scale=180 / np.pi), 0.25, "degrees"),
+    ],
+)
+def test_ct_mistakes_are_named(fn, score, words):
+    result = grade("p1_ct", ct_joint_torque=fn)
+    assert result.score == score and words in result.message, result
+
+
+def test_ik_mistakes_are_named(master1):
+    ik = master1["ik_3r"]
+    degrees = grade("p1_ik", ik_3r=lambda x, elbow_up=True: np.degrees(ik(x, elbow_up)))
+    assert degrees.score == 0 and "in degrees" in degrees.message and "radians" in degrees.message
+    swapped = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, not elbow_up))
+    assert swapped.score == 0 and "that is the elbow-down branch" in swapped.message
+    one_branch = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, True))
+    assert one_branch.score == 0.5 and "elbow-up branch" in one_branch.message
+    wrong_elbow = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, elbow_up) + [0.0, 0.3, 0.0])
+    assert wrong_elbow.score == 0 and "the pan angle is right" in wrong_elbow.message
+    swapped_pan = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik([x[1], x[0], x[2]], elbow_up))
+    assert swapped_pan.score < 1 and "azimuth atan2(y, x)" in swapped_pan.message
+
+
+def test_ik_that_accepts_unreachable_targets_is_told(master1):
+    def no_check(x, elbow_up=True):
+        return master1["ik_3r"](np.asarray(x) * min(1.0, 1.9 / np.linalg.norm(np.asarray(x) - [0, 0, 1])), elbow_up)
+
+    result = grade("p1_ik", ik_3r=no_check)
+    assert result.score == 1 and "instead of raising a ValueError" in result.message
+
+
+@pytest.mark.parametrize(
+    "mistake, score, words",
+    [
+        ("no_jdot", 0.5, "−J̇q̇ term, which is missing"),
+        ("jdot_sign", 0.25, "must be subtracted"),
+        ("no_bias", 0.25, "bias term"),
+        ("transpose", 0.0, "not Jᵀ"),
+        ("no_ff", 0.25, "feed-forward acceleration ẍ_d"),
+        ("spring_sign", 0.0, "spring term has the wrong sign"),
+    ],
+)
+def test_os_ct_mistakes_are_named(mistake, score, words):
+    def ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        M, h = mass_matrix(model, data), bias_forces(data)
+        J = site_jacobian(model, data, SITE)[:3]
+        jdq = site_jdot_qdot(model, data, SITE)[:3]
+        e, edot = x_d - data.site(SITE).xpos, xd_d - J @ data.qvel
+        a = {
+            "no_jdot": xdd_d + Kd * edot + Kp * e,
+            "jdot_sign": xdd_d + Kd * edot + Kp * e + jdq,
+            "no_ff": Kd * edot + Kp * e - jdq,
+            "spring_sign": xdd_d + Kd * edot - Kp * e - jdq,
+        }.get(mistake, xdd_d + Kd * edot + Kp * e - jdq)
+        if mistake == "transpose":
+            return M @ (J.T @ a) + h
+        return M @ np.linalg.solve(J, a) + (0 if mistake == "no_bias" else h)
+
+    result = grade("p2_osct", ct_op_torque=ct_op_torque)
+    assert result.score == score and words in result.message, result
+
+
+def test_jdot_wording_says_what_the_problem_asks():
+    result = grade("p2_osct", ct_op_torque=os_no_jdot)
+    assert "The lab allows dropping" not in result.message
+    assert "the formula of this Problem has it" in result.message and "finite-difference" in result.message
+
+
+def test_ik_ct_mistakes_are_named(master2):
+    model = common.arm_model()
+    ik = master2["ik_3r"]
+
+    def no_jdot(model, data, *ref):
+        return ik_ct_law(model, data, *ref, ik=ik, jdq_of=lambda J_d, q_d, qd_d: np.zeros(3))
+
+    def at_current_state(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        q_d = ik(x_d)
+        J, jdq = jacobian_at(model, data.qpos, data.qvel)
+        qd_d = np.linalg.solve(J, xd_d)
+        qdd_d = np.linalg.solve(J, xdd_d - jdq)
+        return mass_matrix(model, data) @ (qdd_d + Kd * (qd_d - data.qvel) + Kp * (q_d - data.qpos)) + bias_forces(data)
+
+    def elbow_down(model, data, *ref):
+        return ik_ct_law(model, data, *ref, ik=lambda x, elbow_up=True: ik(x, False))
+
+    for fn, score, words in (
+        (no_jdot, 0.5, "J̇(q_d, q̇_d) q̇_d term"),
+        (at_current_state, 0.75, "at the arm's state"),
+        (elbow_down, 0.0, "elbow-down branch"),
+    ):
+        result = grade("p2_ikct", ct_ik_joint_torque=fn)
+        assert result.score == score and words in result.message, result
+    assert model.nv == 3
+
+
+def test_wrong_numbers_are_printed_so_they_differ():
+    a, b = np.array([1.00001, 2.0, 3.0]), np.array([1.00002, 2.0, 3.0])
+    text = show_pair(a, b)
+    got, expected = text.split(", expected ")
+    assert got.removeprefix("got ") != expected.split(" (")[0]
+    assert "%" in text
+    generic = grade("p1_pd", pd_torque=lambda m, d, q_d, Kp, Kd: 1.0001 * (Kp * (q_d - d.qpos) - Kd * d.qvel))
+    assert generic.score == 0 and "got" in generic.message
+    shown = generic.message.split("got ")[1].split(" (difference")[0]
+    assert shown.split(", expected ")[0] != shown.split(", expected ")[1]
+
+
+# --- unusual but correct: full marks -------------------------------------------------------------------
+
+
+def test_sound_approximations_get_full_marks(master2):
+    cases = {
+        "p2_osct": {"ct_op_torque": [os_fd_time(), os_fd_configuration, lambda *a: os_law(*a, inv=True)]},
+        "p2_ikct": {
+            "ct_ik_joint_torque": [
+                ik_ct_fd_time(),
+                ik_ct_law,  # Newton IK
+                lambda m, d, *r: ik_ct_law(m, d, *r, ik=master2["ik_3r"]),
+            ]
+        },
+    }
+    for name, by_function in cases.items():
+        for fname, variants in by_function.items():
+            for fn in variants:
+                for seed in (PUBLIC_SEED, OTHER_SEED):
+                    result = grade(name, seed, **{fname: fn})
+                    assert result.status == PASS and result.score == 1, result
+
+
+def test_numerical_ik_gets_full_marks():
+    result = grade("p1_ik", OTHER_SEED, ik_3r=newton_ik)
+    assert result.status == PASS and result.score == 1, result
+
+
+def test_finite_difference_jdot_tracks_and_never_scores_below_dropping_it(master2):
+    fd = {"ct_op_torque": os_fd_time(), "ct_ik_joint_torque": ik_ct_fd_time(master2["ik_3r"])}
+    dropped = {"ct_op_torque": os_no_jdot, "ct_ik_joint_torque": master2["ct_ik_joint_torque"]}
+    fd_track = grade("p2_track", OTHER_SEED, **fd)
+    assert fd_track.score == 1, fd_track
+    fd_total = grade("p2_osct", OTHER_SEED, **fd).score * 3 + fd_track.score * 3
+    dropped_total = (
+        grade("p2_osct", OTHER_SEED, **dropped).score * 3 + grade("p2_track", OTHER_SEED, **dropped).score * 3
+    )
+    assert fd_total == 6 and dropped_total < fd_total
+
+
+def test_a_poor_jdot_approximation_keeps_more_than_leaving_it_out():
+    def rough(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        return os_law(model, data, x_d, xd_d, xdd_d, Kp, Kd, 0.7 * site_jdot_qdot(model, data, SITE)[:3])
+
+    result = grade("p2_osct", ct_op_torque=rough)
+    assert 0.5 < result.score < 1 and "off by 30 %" in result.message, result
+
+
+# --- forbidden calls into labsupport: zero, with the reason ---------------------------------------
+
+
+def forbidden_ct(model, data, q_d, Kp, Kd):
+    return joint_space_alias.ct_joint_torque(model, data, q_d, np.zeros(3), np.zeros(3), Kp, Kd)
+
+
+def test_calling_labsupports_controllers_scores_zero():
+    from labsupport.controllers.joint_space import ct_joint_torque as renamed
+
+    def via_from_import(model, data, q_d, Kp, Kd):
+        return renamed(model, data, q_d, np.zeros(3), np.zeros(3), Kp, Kd)
+
+    for fn in (forbidden_ct, via_from_import):
+        for name in ("p1_ct", "p1_reach"):
+            result = grade(name, ct_joint_torque=fn)
+            assert result.score == 0 and result.status == FAIL, result
+            assert rules.MARKER in result.message
+            assert "labsupport.controllers.joint_space.ct_joint_torque" in result.message
+
+
+def test_calling_labsupports_kinematics_scores_zero(master1):
+    def ik_through_2r(x, elbow_up=True):
+        x = np.asarray(x, float)
+        rho, h = np.hypot(x[0], x[1]), x[2] - 1.0
+        q = planar_ik(np.array([rho, h]), branch="down" if elbow_up else "up")  # the 2R arm's own IK
+        return master1["ik_3r"](x, elbow_up) + 0 * q[0]
+
+    result = grade("p1_ik", ik_3r=ik_through_2r)
+    assert result.score == 0 and rules.MARKER in result.message and "labsupport.kinematics" in result.message
+
+
+def test_calling_the_checks_internals_scores_zero():
+    def borrowed(model, data, q_d, Kp, Kd):
+        state = State(data.qpos.copy(), data.qvel.copy())
+        return problem1.ct_law(common.terms(model, state.q, state.qdot), state, q_d, Kp, Kd)
+
+    result = grade("p1_ct", ct_joint_torque=borrowed)
+    assert result.score == 0 and "labsupport.grading.common.terms" in result.message
+
+
+def test_the_sandboxs_stub_error_gives_the_same_zero_and_reason():
+    qualified = "labsupport.controllers.joint_space.ct_joint_torque"
+
+    def stubbed(model, data, q_d, Kp, Kd):  # what the batch sandbox's stub does when called
+        raise RuntimeError(rules.forbidden_message(qualified))
+
+    class SandboxLike(Probe):  # the batch probe passes the error on as text, cut at 200 characters
+        def call(self, fname, *args, **kwargs):
+            from labsupport.grading.feedback import StudentError
+
+            raise StudentError(f"{fname} raised RuntimeError: {rules.forbidden_message(qualified)[:200]}")
+
+    direct = grade("p1_ct", ct_joint_torque=stubbed)
+    batch = problem1.check_ct(SandboxLike(), OTHER_SEED)
+    for result in (direct, batch):
+        assert result.score == 0 and result.message.startswith(f"CT: {qualified} {rules.MARKER}"), result
+        assert "raised RuntimeError" not in result.message
+    assert len(rules.forbidden_message(qualified)) <= 200
+
+
+def test_the_watch_leaves_other_profilers_running():
+    seen = []
+
+    def outer(frame, event, arg):
+        seen.append(event)
+
+    sys.setprofile(outer)
+    try:
+        value, used = rules.call_watched(lambda: np.linalg.norm([3.0, 4.0]))
+        assert sys.getprofile() is outer
+    finally:
+        sys.setprofile(None)
+    assert value == 5.0 and used is None and "call" in seen
+    assert rules.is_forbidden_module("labsupport.controllers.ur5e")
+    assert not rules.is_forbidden_module("labsupport.dynamics") and not rules.is_forbidden_module("labsupport.grading")
+
+
+# --- seeds ----------------------------------------------------------------------------------------------
+
+
+class Recorder(Probe):
+    """Records every argument a check passes; answers like the masters."""
+
+    def __init__(self, ns):
+        self.inner, self.seen = DirectProbe(ns), []
+
+    def call(self, fname, *args, **kwargs):
+        self.seen.append(np.concatenate([np.ravel(a.q) if isinstance(a, State) else np.ravel(a) for a in args]))
+        return self.inner.call(fname, *args, **kwargs)
+
+    def get(self, name):
+        return self.inner.get(name)
+
+
+def test_different_seeds_draw_different_tests(master1, master2):
+    for name in ("p1_ik", "p1_pd", "p1_ct", "p2_osct", "p2_ikct"):
+        ns = master1 if name.startswith("p1") else master2
+        runs = {}
+        for seed in (PUBLIC_SEED, OTHER_SEED, PUBLIC_SEED):
+            probe = Recorder(ns)
+            registry()[name](probe, seed)
+            runs.setdefault(seed, []).append(np.concatenate(probe.seen))
+        assert np.array_equal(*runs[PUBLIC_SEED]), f"{name}: the same seed must give the same tests"
+        assert not np.allclose(runs[PUBLIC_SEED][0][:9], runs[OTHER_SEED][0][:9]), name
+    assert not np.allclose(problem2.tracking_circle(PUBLIC_SEED)[0], problem2.tracking_circle(OTHER_SEED)[0])
+
+
+def test_seeded_circles_stay_reachable_and_away_from_singularities():
+    model = common.arm_model()
+    for seed in range(6):
+        center, radius, normal, q0, qdot0 = problem2.tracking_circle(seed)
+        from labsupport.trajectories import circle_3d
+
+        ref = circle_3d(np.linspace(0, 5, 200), center, radius, normal, problem2.FREQUENCY)
+        assert np.allclose(ref.pos[0], tip_at(model, q0)) and common.elbow_height(model, q0) > 0
+        assert all(common.safe_point(p) for p in ref.pos)
+        J, _ = jacobian_at(model, q0)
+        assert np.allclose(J @ qdot0, ref.vel[0])
+
+
+# --- stability: the real cause of PD's divergence near the folded arm --------------------------------------
+
+
+def test_pd_divergence_near_the_folded_arm_is_explained(master1):
+    model = common.arm_model()
+    folded = np.array([0.0, 0.0, np.pi / 2])
+    pd = master1["pd_torque"]
+    text = stiff_damping(model, lambda m, d: pd(m, d, folded, 400.0, 50.0), folded, np.zeros(3))
+    M11 = mass_matrix(model, common.data_at(model, folded))[0, 0]
+    assert M11 == pytest.approx(0.003)
+    assert "not a sign error" in text and f"{50 * 0.002 / M11:.3g}" in text and "pan joint 1" in text
+    assert "smaller time step" in text and "lower Kd" in text
+    assert (
+        stiff_damping(model, lambda m, d: master1["ct_joint_torque"](m, d, folded, 100.0, 18.0), folded, np.zeros(3))
+        is None
+    )
+
+    probe = DirectProbe({"pd_torque": pd})
+    with pytest.raises(Exception, match="not a sign error.*Kd·Δt/M"):
+        common.run_student(probe, "pd_torque", (np.array([0.8, 0.1, 1.5]), 400.0, 50.0), 2.0, problem1.Q0)
+
+
+# --- what a student installs holds no answer ------------------------------------------------------------
+
+
+def installed_modules():
+    """Every module a student installs: all of labsupport except the instructor's tooling (which
+    pyproject leaves out of the wheel)."""
+    pyproject = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
+    assert '"labsupport.instructor' not in pyproject.split("[tool.setuptools]")[1].split("[tool.setuptools.")[0]
+    names = ["labsupport"]
+    for info in pkgutil.walk_packages(labsupport.__path__, "labsupport."):
+        if not info.name.startswith(("labsupport.instructor", "labsupport.models")):
+            names.append(info.name)
+    return names
+
+
+def ik_like(name: str) -> bool:
+    lowered = name.lower()
+    return "inverse" in lowered or lowered == "ik" or lowered.startswith("ik_") or "_ik" in lowered
+
+
+def test_no_installed_function_puts_the_3r_arm_on_a_target():
+    model = common.arm_model()
+    rng = common.rng_for(7, "install")
+    targets = [common.tip(model, common.draw_configuration(rng, elbow_up=bool(k % 2))) for k in range(6)]
+    tried = []
+    for module_name in installed_modules():
+        module = importlib.import_module(module_name)
+        for name, fn in inspect.getmembers(module, callable):
+            if not ik_like(name) or getattr(fn, "__module__", "") != module_name:
+                continue
+            tried.append(f"{module_name}.{name}")
+            for x in targets:
+                for args in ((x,), (x, True), (x, False)):
+                    try:
+                        q = np.asarray(fn(*args), dtype=float)
+                    except Exception:
+                        continue
+                    if q.shape == (3,) and np.all(np.isfinite(q)):
+                        assert np.linalg.norm(tip_at(model, q) - x) > 1e-3, f"{module_name}.{name} solves the 3R IK"
+    assert "labsupport.kinematics.planar_2r.inverse_kinematics" in tried
+    assert not (ROOT / "labsupport" / "kinematics" / "spatial_3r.py").exists()
+    assert labsupport.__name__ == "labsupport"
