@@ -134,7 +134,8 @@ def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.nda
         StudentError: for anything else unusable (wrong shape, NaN, not numbers).
     """
     if value is None:
-        raise NotImplementedYet(f"{fname} returned None: not implemented yet")
+        verb = "is" if what == "value" else "returned"
+        raise NotImplementedYet(f"{fname} {verb} None: not implemented yet")
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
