@@ -18,7 +18,7 @@ import labsupport
 import labsupport.controllers.joint_space as joint_space_alias
 from labsupport.dynamics import bias_forces, mass_matrix, site_jacobian, site_jdot_qdot
 from labsupport.grading import PUBLIC_SEED, check, common, problem1, problem2, registry, rules
-from labsupport.grading.feedback import FAIL, NOT_IMPLEMENTED, PASS, DirectProbe, Probe, State, show_pair
+from labsupport.grading.feedback import FAIL, NOT_IMPLEMENTED, PASS, DirectProbe, Probe, State, show_beside, show_pair
 from labsupport.grading.stability import stiff_damping
 from labsupport.kinematics.planar_2r import inverse_kinematics as planar_ik
 
@@ -347,6 +347,7 @@ def test_wrong_numbers_are_printed_so_they_differ():
     got, expected = text.split(", expected ")
     assert got.removeprefix("got ") != expected.split(" (")[0]
     assert "%" in text
+    assert show_beside(1.0004, 1.0) == "1.0004" and show_beside(1.00000004, 1.0) != "1"
     generic = grade("p1_pd", pd_torque=lambda m, d, q_d, Kp, Kd: 1.0001 * (Kp * (q_d - d.qpos) - Kd * d.qvel))
     assert generic.score == 0 and "got" in generic.message
     shown = generic.message.split("got ")[1].split(" (difference")[0]

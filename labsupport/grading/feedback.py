@@ -101,6 +101,15 @@ def refused(name: str, label: str, err: StudentError) -> Result:
     return failed(name, f"{label}: {err}")
 
 
+def show_beside(value: float, limit: float) -> str:
+    """``value`` with enough significant digits that it never prints like ``limit`` (4 at least):
+    1.0004 beside a limit of 1 prints as 1.0004, not 1."""
+    digits = 4
+    while digits < 15 and value != limit and float(f"{value:.{digits}g}") == limit:
+        digits += 1
+    return f"{value:.{digits}g}"
+
+
 def show_pair(got, expected) -> str:
     """``got … , expected …`` with enough digits that two different vectors never print alike,
     and their relative difference."""

@@ -41,6 +41,7 @@ from labsupport.grading.feedback import (
     forbidden_reason,
     passed,
     refused,
+    show_beside,
 )
 
 #: The Problem's numbers.
@@ -290,7 +291,8 @@ def check_reach(probe: Probe, seed: int) -> Result:
         )
     return failed(
         name,
-        f"reach: with your computed torque the end effector ends {final * 1e3:.4g} mm from {where} "
+        f"reach: with your computed torque the end effector ends {show_beside(final * 1e3, REACH_TOL * 1e3)} mm "
+        f"from {where} "
         f"after {DURATION:g} s; it should be below 1 mm.",
     )
 

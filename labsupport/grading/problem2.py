@@ -38,7 +38,17 @@ from labsupport.grading.common import (
     tip,
     tracking_cases,
 )
-from labsupport.grading.feedback import Probe, Result, StudentError, as_vector, failed, not_implemented, passed, refused
+from labsupport.grading.feedback import (
+    Probe,
+    Result,
+    StudentError,
+    as_vector,
+    failed,
+    not_implemented,
+    passed,
+    refused,
+    show_beside,
+)
 from labsupport.metrics import rms_norm
 from labsupport.trajectories import circle_3d, circle_basis
 
@@ -311,7 +321,7 @@ def check_tracking(probe: Probe, seed: int) -> Result:
             score += 0.5
             notes.append(f"{label}: RMS error {err * 1e3:.3g} mm (needs < 1 mm)")
         else:
-            notes.append(f"{label}: RMS error {err * 1e3:.4g} mm, should be below 1 mm")
+            notes.append(f"{label}: RMS error {show_beside(err * 1e3, RMS_TOL * 1e3)} mm, should be below 1 mm")
     with np.printoptions(precision=3, suppress=True):
         where = f"one turn of a circle of radius {radius:.3f} m about {center}, normal {normal}"
     text = f"tracking ({where}): " + "; ".join(notes) + "."
