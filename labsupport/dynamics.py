@@ -15,11 +15,29 @@ that knows; keep it that way.
 
 from __future__ import annotations
 
+import threading
+
 import mujoco
 import numpy as np
 
 #: True on MuJoCo >= 4, where ``mj_fullM(model, data, dst)`` replaced ``mj_fullM(model, dst, qM)``.
 FULLM_TAKES_DATA = not hasattr(mujoco.MjData, "qM")
+
+_scratch = threading.local()
+
+
+def _work(name: str, shape: tuple[int, ...]) -> np.ndarray:
+    """A scratch array of ``shape``, made once per thread and reused by every later call, so
+    the helpers below allocate nothing for their intermediate results inside a control loop.
+    Only the helper that names it uses it, and never across a call to another helper."""
+    try:
+        return _scratch.arrays[name, shape]
+    except AttributeError:
+        _scratch.arrays = {}
+    except KeyError:
+        pass
+    work = _scratch.arrays[name, shape] = np.empty(shape)
+    return work
 
 
 def mass_matrix(model: mujoco.MjModel, data: mujoco.MjData, out: np.ndarray | None = None) -> np.ndarray:
@@ -71,16 +89,21 @@ def site_jacobian(
     return out
 
 
-def site_jdot_qdot(model: mujoco.MjModel, data: mujoco.MjData, site: int | str) -> np.ndarray:
+def site_jdot_qdot(
+    model: mujoco.MjModel, data: mujoco.MjData, site: int | str, out: np.ndarray | None = None
+) -> np.ndarray:
     r"""The velocity-product acceleration :math:`\dot J(q,\dot q)\,\dot q` of a site, shape ``(6,)``.
 
     With it, :math:`\ddot x = J\ddot q + \dot J\dot q`. Uses ``mj_jacDot`` at the site's
-    current position.
+    current position; :math:`\dot J` goes to a scratch array reused from call to call.
+
+    Args:
+        out: optional preallocated ``(6,)`` float64 array to fill; a new array otherwise.
     """
     sid = site_id(model, site)
-    jdot = np.zeros((6, model.nv))
+    jdot = _work("jdot", (6, model.nv))
     mujoco.mj_jacDot(model, data, jdot[:3], jdot[3:], data.site_xpos[sid], model.site_bodyid[sid])
-    return jdot @ data.qvel
+    return np.dot(jdot, data.qvel, out=out)
 
 
 def jacobian_solve(J: np.ndarray, rhs: np.ndarray, min_pivot: float = 1e-10) -> np.ndarray:
@@ -91,16 +114,26 @@ def jacobian_solve(J: np.ndarray, rhs: np.ndarray, min_pivot: float = 1e-10) -> 
     tells a singular :math:`J` apart: a pivot below ``min_pivot`` means the arm is stretched
     out or folded, where no joint motion produces some task motion.
     """
-    JJt = J @ J.T
-    if mujoco.mju_cholFactor(JJt, min_pivot) < len(rhs):
+    J = np.ascontiguousarray(J, dtype=float)
+    rhs = np.ascontiguousarray(rhs, dtype=float)
+    d, nv = J.shape if J.ndim == 2 else (-1, -1)
+    if rhs.shape != (d,) or d > nv:
+        raise ValueError(
+            f"jacobian_solve needs a (d, nv) Jacobian with d <= nv and a (d,) right-hand side, "
+            f"got J of shape {J.shape} and rhs of shape {rhs.shape}"
+        )
+    JJt, z = _work("JJt", (d, d)), _work("z", (d,))
+    mujoco.mju_mulMatMatT(JJt, J, J)
+    if mujoco.mju_cholFactor(JJt, min_pivot) < d:
         raise ValueError(
             "the Jacobian is singular at this configuration (the arm is stretched out or "
             "folded): no joint acceleration gives the task acceleration asked for; keep the "
             "target inside the workspace, away from its boundary"
         )
-    z = np.empty(len(rhs))
     mujoco.mju_cholSolve(z, JJt, rhs)
-    return J.T @ z
+    x = np.empty(nv)
+    mujoco.mju_mulMatTVec(x, J, z)
+    return x
 
 
 def task_space_inertia(model: mujoco.MjModel, data: mujoco.MjData, jac: np.ndarray, damping: float = 0.0) -> np.ndarray:
@@ -120,6 +153,8 @@ def task_space_inertia(model: mujoco.MjModel, data: mujoco.MjData, jac: np.ndarr
 def site_id(model: mujoco.MjModel, site: int | str) -> int:
     """The id of a site given by name (or already by id); ``ValueError`` naming the model's
     sites if there is none of that name."""
+    if type(site) is int:
+        return site
     if isinstance(site, str):
         site_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
         if site_id < 0:

@@ -46,6 +46,13 @@ _FATAL_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADCTRL,
 )
 _W_QPOS, _W_QVEL, _W_QACC, _W_CTRL = (int(w) for w in _FATAL_WARNINGS)
+#: What the loop logs each step with one ``mj_getState``: time, qpos, qvel and ctrl, in that order.
+_LOGGED_STATE = int(
+    mujoco.mjtState.mjSTATE_TIME
+    | mujoco.mjtState.mjSTATE_QPOS
+    | mujoco.mjtState.mjSTATE_QVEL
+    | mujoco.mjtState.mjSTATE_CTRL
+)
 _WARNING_MEANING = {
     _W_QPOS: "positions not finite or huge",
     _W_QVEL: "velocities not finite or huge",
@@ -216,19 +223,20 @@ def simulate(
     neg_limit = None if limit is None else -limit
     clipped = np.empty(nu)
 
-    t_ctrl = np.empty(nsteps)  # time of each control (the step's start)
-    q, qdot = np.empty((nsteps, model.nq)), np.empty((nsteps, model.nv))
-    tau_log = np.empty((nsteps, nu))
-    ctrl_log = np.empty((nsteps, nu)) if actuation is not None else tau_log
+    # One row per step: time, qpos, qvel and ctrl, copied in one mj_getState call.
+    nq, nv = model.nq, model.nv
+    state = np.empty((nsteps, mujoco.mj_stateSize(model, _LOGGED_STATE)))
+    q, qdot, ctrl_log = state[:, 1 : 1 + nq], state[:, 1 + nq : 1 + nq + nv], state[:, 1 + nq + nv :]
+    tau_log = ctrl_log if actuation is None else np.empty((nsteps, nu))
     with_site = site_id >= 0
     ee = np.empty((nsteps, 3 if with_site else 0))
     ee_rot = np.empty((nsteps, 3 if with_site else 0, 3 if with_site else 0))
-    qpos, qvel, ctrl = data.qpos, data.qvel, data.ctrl
+    ctrl = data.ctrl
     site_xpos = data.site_xpos[site_id] if with_site else None
     site_xmat = data.site_xmat[site_id].reshape(3, 3) if with_site else None
-    warn = data.warning.number  # live view of MuJoCo's warning counters
-    q_start, qdot_start = qpos.copy(), qvel.copy()
-    step, step1, step2 = mujoco.mj_step, mujoco.mj_step1, mujoco.mj_step2
+    warn = memoryview(data.warning.number)  # live view of MuJoCo's warning counters
+    t_start, q_start, qdot_start = data.time, data.qpos.copy(), data.qvel.copy()
+    step, step1, step2, get_state = mujoco.mj_step, mujoco.mj_step1, mujoco.mj_step2, mujoco.mj_getState
     log_before = not log_after_step
 
     for k in range(nsteps):
@@ -239,16 +247,13 @@ def simulate(
             tau = _as_torque(tau, nu)
         if limit is not None:
             tau = np.clip(tau, neg_limit, limit, out=clipped)
-        tau_log[k] = tau
         if actuation is None:
             ctrl[:] = tau
         else:
+            tau_log[k] = tau
             ctrl[:] = actuation(model, data, tau)
-            ctrl_log[k] = ctrl
-        t_ctrl[k] = data.time
         if log_before:
-            q[k] = qpos
-            qdot[k] = qvel
+            get_state(model, data, state[k], _LOGGED_STATE)
             if with_site:
                 ee[k] = site_xpos
                 ee_rot[k] = site_xmat
@@ -257,17 +262,20 @@ def simulate(
         else:
             step(model, data)
         if warn[_W_QPOS] or warn[_W_QVEL] or warn[_W_QACC] or warn[_W_CTRL]:
-            _raise_warning(k, t_ctrl, q, qdot, tau_log, q_start, qdot_start, warn, log_after_step)
+            _raise_warning(k, state, q, qdot, t_start, q_start, qdot_start, tau, warn, log_after_step)
         if log_after_step:
-            q[k] = qpos
-            qdot[k] = qvel
+            get_state(model, data, state[k], _LOGGED_STATE)
 
-    _check_finite(t_ctrl, q, qdot, dt, log_after_step)
-    t = t_ctrl + dt if log_after_step else t_ctrl
+    if log_after_step:  # each row holds the state after its step; the control began one step earlier
+        t = state[:, 0].copy()
+        t_ctrl = np.concatenate(([t_start], t[:-1]))
+    else:
+        t = t_ctrl = state[:, 0].copy()
+    q, qdot, ctrl_log = q.copy(), qdot.copy(), ctrl_log.copy()
+    tau_log = ctrl_log.copy() if actuation is None else tau_log
+    _check_finite(t, q, qdot)
     if log_after_step and with_site:
         ee, ee_rot = site_poses(model, q, site_id)
-    if ctrl_log is tau_log:
-        ctrl_log = tau_log.copy()
     if reference is not None:
         ref = _evaluate(reference, t_ctrl)
         if ref.shape[1] > ee.shape[1]:
@@ -291,30 +299,30 @@ def _as_torque(tau, nu: int) -> np.ndarray:
     return tau.reshape(nu)
 
 
-def _raise_warning(k, t_ctrl, q, qdot, tau_log, q_start, qdot_start, warn, log_after_step):
+def _raise_warning(k, state, q, qdot, t_start, q_start, qdot_start, tau, warn, log_after_step):
     """MuJoCo flagged step ``k`` (and reset the state): report the state at the step's start."""
     if log_after_step:
-        qk, qdk = (q[k - 1], qdot[k - 1]) if k else (q_start, qdot_start)
+        tk, qk, qdk = (state[k - 1, 0], q[k - 1], qdot[k - 1]) if k else (t_start, q_start, qdot_start)
     else:
-        qk, qdk = q[k], qdot[k]
+        tk, qk, qdk = state[k, 0], q[k], qdot[k]
     if warn[_W_CTRL]:
         with np.printoptions(precision=4):
-            reason = f"the controller returned tau = {tau_log[k]}: MuJoCo's {_WARNING_MEANING[_W_CTRL]}"
+            reason = f"the controller returned tau = {tau}: MuJoCo's {_WARNING_MEANING[_W_CTRL]}"
     else:
         w = next(i for i in (_W_QPOS, _W_QVEL, _W_QACC) if warn[i])
         reason = (
             f"MuJoCo warning {mujoco.mjtWarning(w).name}: {_WARNING_MEANING[w]} during the step "
             "from this state; MuJoCo reset the simulation"
         )
-    raise SimulationDiverged(float(t_ctrl[k]), qk, qdk, reason)
+    raise SimulationDiverged(float(tk), qk, qdk, reason)
 
 
-def _check_finite(t_ctrl, q, qdot, dt, log_after_step):
+def _check_finite(t, q, qdot):
+    """Raise :class:`SimulationDiverged` at the first logged state that is not finite."""
     bad = ~(np.isfinite(q).all(axis=1) & np.isfinite(qdot).all(axis=1))
     if bad.any():
         k = int(np.argmax(bad))
-        t = t_ctrl[k] + (dt if log_after_step else 0.0)
-        raise SimulationDiverged(float(t), q[k], qdot[k], "non-finite state")
+        raise SimulationDiverged(float(t[k]), q[k], qdot[k], "non-finite state")
 
 
 def _evaluate(reference, t) -> np.ndarray:
@@ -338,13 +346,15 @@ def site_poses(model: mujoco.MjModel, q: np.ndarray, site: str | int) -> tuple[n
     if site_id < 0:
         raise ValueError(f"site {site!r} is not in the model")
     scratch = mujoco.MjData(model)
-    pos, rot = np.empty((len(q), 3)), np.empty((len(q), 3, 3))
+    qpos, xpos, xmat = scratch.qpos, scratch.site_xpos[site_id], scratch.site_xmat[site_id]
+    pos, rot = np.empty((len(q), 3)), np.empty((len(q), 9))
+    kinematics = mujoco.mj_kinematics
     for k, qk in enumerate(q):
-        scratch.qpos[:] = qk
-        mujoco.mj_kinematics(model, scratch)
-        pos[k] = scratch.site_xpos[site_id]
-        rot[k] = scratch.site_xmat[site_id].reshape(3, 3)
-    return pos, rot
+        qpos[:] = qk
+        kinematics(model, scratch)
+        pos[k] = xpos
+        rot[k] = xmat
+    return pos, rot.reshape(len(q), 3, 3)
 
 
 def site_positions(model: mujoco.MjModel, q: np.ndarray, site: str | int) -> np.ndarray:

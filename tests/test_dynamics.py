@@ -164,3 +164,31 @@ def test_jacobian_solve_is_the_inverse_and_refuses_a_singular_jacobian():
     J = np.array([[0.9, 0.4], [0.0, 0.0]])  # the 2R stretched out along x
     with pytest.raises(ValueError, match="singular"):
         dynamics.jacobian_solve(J, np.array([1.0, 0.0]))
+
+
+def test_jdot_qdot_fills_out_and_returns_a_fresh_array_otherwise(arm):
+    model, data = arm
+    _set_state(model, data, np.random.default_rng(4))
+    first = dynamics.site_jdot_qdot(model, data, "tip")
+    out = np.full(6, np.nan)
+    assert dynamics.site_jdot_qdot(model, data, "tip", out=out) is out
+    np.testing.assert_array_equal(out, first)
+    data.qvel[:] *= 2.0  # Jdot qdot is quadratic in qdot; the first result must not change with it
+    mujoco.mj_forward(model, data)
+    np.testing.assert_allclose(dynamics.site_jdot_qdot(model, data, "tip"), 4.0 * first, rtol=1e-9, atol=1e-12)
+    assert not np.allclose(first, 4.0 * first)
+
+
+def test_jacobian_solve_takes_a_wide_jacobian_and_any_memory_layout():
+    rng = np.random.default_rng(5)
+    J, y = rng.normal(size=(2, 3)), rng.normal(size=2)
+    x = dynamics.jacobian_solve(np.asfortranarray(J), list(y))
+    np.testing.assert_allclose(J @ x, y, atol=1e-12)
+    np.testing.assert_allclose(x, np.linalg.pinv(J) @ y, atol=1e-12)  # the least-norm solution
+
+
+def test_jacobian_solve_names_the_shapes_it_needs():
+    with pytest.raises(ValueError, match=r"\(d, nv\).*shape \(3, 2\)"):
+        dynamics.jacobian_solve(np.ones((3, 2)), np.ones(3))
+    with pytest.raises(ValueError, match=r"rhs of shape \(3,\)"):
+        dynamics.jacobian_solve(np.eye(2), np.ones(3))

@@ -33,10 +33,11 @@ circle = partial(circle_2d, center=(0.5, 0.2), radius=0.15, period=6.0)
 
 def os_ct_controller(model, Kp, Kd):
     ref = trajectories.sample(circle, model.opt.timestep, DURATION)
+    ee = model.site("end_effector").id
 
     def controller(model, data):
         x_d, xdot_d, xddot_d = ref.at(data.time)
-        return os_ct_torque(model, data, "end_effector", x_d, xdot_d, xddot_d, Kp, Kd)
+        return os_ct_torque(model, data, ee, x_d, xdot_d, xddot_d, Kp, Kd)
 
     return controller
 
