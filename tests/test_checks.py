@@ -525,7 +525,8 @@ def test_seeded_circles_stay_reachable_and_away_from_singularities():
 # --- stability: the real cause of PD's divergence near the folded arm --------------------------------------
 
 
-def test_pd_divergence_near_the_folded_arm_is_explained(master1):
+def test_pd_divergence_near_the_folded_arm_is_explained(master1, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # MuJoCo logs the divergence to MUJOCO_LOG.TXT in the working directory
     model = common.arm_model()
     folded = np.array([0.0, 0.0, np.pi / 2])
     pd = master1["pd_torque"]
