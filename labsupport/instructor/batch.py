@@ -47,6 +47,7 @@ from concurrent.futures import ProcessPoolExecutor
 from functools import partial
 from pathlib import Path
 
+from labsupport.grading import registry
 from labsupport.instructor import isolation, judge
 
 #: Where ``--problem NAME`` finds its spec, relative to the current directory (the repository root).
@@ -144,6 +145,7 @@ def run_batch(
         except OSError as err:
             payloads.append((p.name, None, f"could not read the file: {err.strerror}"))
     seed = new_seed() if seed is None else int(seed)
+    registry()  # the checks are loaded once, before the workers fork: every row uses the same code
     budget = budget or judge.Budget(wall=timeout)
     if budget.wall != timeout:
         budget = judge.Budget(**{**budget.__dict__, "wall": timeout})

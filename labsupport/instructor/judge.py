@@ -61,7 +61,7 @@ class Budget:
         wall: wall-clock backstop for the whole submission [s]; past it the row says "timed out: regrade".
     """
 
-    cell: float = 60.0
+    cell: float = 30.0
     run: float = 120.0
     call: float = 10.0
     check: float = 60.0

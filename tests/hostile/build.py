@@ -1,0 +1,306 @@
+"""Write the hostile submissions of this folder from the Problem 1 notebooks.
+
+    .venv/bin/python tests/hostile/build.py           # rewrite them
+    .venv/bin/python tests/hostile/build.py --check   # fail if any differs from what is committed
+
+Each is the master (a correct notebook) or the student notebook (nothing implemented) with one
+misbehaviour added, so a score different from what the test suite expects means either a
+grading mistake or a successful attack. Rebuild after changing a Problem 1 notebook.
+
+The memoriser holds the answers of the *public* in-notebook checks (``PUBLIC_SEED``), recorded
+here by running the checks against the master's functions.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import hashlib
+import os
+import sys
+from pathlib import Path
+
+import nbformat
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+HERE = Path(__file__).resolve().parent
+MASTER = ROOT / "notebooks" / "masters" / "problem1_reaching.ipynb"
+STUDENT = ROOT / "notebooks" / "problem1_reaching.ipynb"
+#: Functions of the Problem 1 TODOs.
+TODO_FUNCTIONS = ("ik_3r", "pd_torque", "ct_joint_torque")
+
+
+def _defining(nb, fname: str) -> int:
+    for k, cell in enumerate(nb.cells):
+        if cell.cell_type == "code" and f"def {fname}(" in cell.source:
+            return k
+    raise LookupError(f"no cell defines {fname}")
+
+
+def _imports(nb) -> int:
+    for k, cell in enumerate(nb.cells):
+        if cell.cell_type == "code" and cell.source.startswith("import labsupport"):
+            return k
+    raise LookupError("no import cell")
+
+
+def insert_after(nb, index: int, source: str):
+    cell = nbformat.v4.new_code_cell(source)
+    cell.id = hashlib.sha256(source.encode()).hexdigest()[:8]  # stable, so a rebuild changes nothing
+    nb.cells.insert(index + 1, cell)
+    return nb
+
+
+def replace_function(nb, fname: str, source: str):
+    nb.cells[_defining(nb, fname)].source = source
+    return nb
+
+
+def load(path: Path):
+    return nbformat.read(str(path), as_version=4)
+
+
+# --- attacks on the grader, each on a notebook that implements nothing -----------------------
+
+#: Overwrite every grades.csv, every check module and every notebook it can reach.
+VANDAL = r"""
+import os
+TARGETS = ("grades.csv", "problem1.py", "problem2.py", "common.py", "__init__.py", "batch.json")
+def vandalise(top="/"):
+    hits = []
+    for base, dirs, files in os.walk(top):
+        dirs[:] = [d for d in dirs if os.path.join(base, d) not in ("/proc", "/sys", "/dev")]
+        for name in files:
+            path = os.path.join(base, name)
+            if name.endswith(".ipynb") or name in TARGETS or name.endswith(".txt"):
+                try:
+                    with open(path, "a") as f:
+                        f.write("\nhacked\n")
+                    hits.append(path)
+                except OSError:
+                    pass
+    return hits
+"""
+
+ESCAPE = (
+    VANDAL
+    + r"""
+import time
+if os.fork() == 0:            # an escaped process: new session, double fork
+    os.setsid()
+    if os.fork() == 0:
+        for _ in range(200):  # keeps trying for a while after the batch
+            vandalise()
+            time.sleep(0.2)
+        os._exit(0)
+    os._exit(0)
+"""
+)
+
+WRITES_EVERYWHERE = (
+    VANDAL
+    + r"""
+open("junk.txt", "w").write("x" * 1000)
+vandalise()
+"""
+)
+
+MASTERS_VIA_INTERPRETER = r"""
+import os, sys, json, pathlib
+import labsupport
+starts = [sys.prefix, sys.base_prefix, sys.exec_prefix, os.path.dirname(labsupport.__file__), os.getcwd()]
+solutions = []
+for start in starts:
+    for folder in [pathlib.Path(start), *pathlib.Path(start).parents]:
+        for nb in list(folder.glob("*.ipynb")) + list(folder.glob("*/*.ipynb")) + list(folder.glob("*/*/*.ipynb")):
+            try:
+                cells = json.loads(nb.read_text())["cells"]
+            except Exception:
+                continue
+            for cell in cells:
+                src = "".join(cell.get("source", []))
+                if cell.get("cell_type") == "code" and "BEGIN SOLUTION" in src:
+                    solutions.append(src)
+for src in solutions:
+    try:
+        exec(src, globals())
+    except Exception:
+        pass
+"""
+
+MEMORY_HOG = r"""
+import numpy as np
+big = np.ones(20 * 2**30 // 8)   # 20 GiB
+"""
+
+FORK_BOMB = r"""
+import os, time
+children = []
+for _ in range(100):              # a bounded fork bomb: 100 sleepers
+    pid = os.fork()
+    if pid == 0:
+        time.sleep(120)
+        os._exit(0)
+    children.append(pid)
+"""
+
+
+def memoriser(table: dict) -> str:
+    """A notebook cell answering the public checks from a lookup table (and nothing else)."""
+    return f"""import numpy as np
+TABLE = {table!r}
+
+def _key(fname, args):
+    parts = [fname]
+    for a in args:
+        if hasattr(a, "qpos"):
+            parts += [round(float(v), 6) for v in np.concatenate([a.qpos, a.qvel])]
+        elif hasattr(a, "nq"):
+            continue
+        else:
+            parts += [round(float(v), 6) for v in np.ravel(a)]
+    return repr(parts)
+
+def _lookup(fname, *args):
+    value = TABLE.get(_key(fname, args))
+    return np.zeros(3) if value is None else np.array(value)
+
+def ik_3r(x, elbow_up=True):
+    return _lookup("ik_3r", x, float(elbow_up))
+
+def pd_torque(model, data, q_d, Kp, Kd):
+    return _lookup("pd_torque", data, q_d, Kp, Kd)
+
+def ct_joint_torque(model, data, q_d, Kp, Kd):
+    return _lookup("ct_joint_torque", data, q_d, Kp, Kd)
+"""
+
+
+def record_public_answers() -> dict:
+    """``{key: answer}`` of every call the public checks make to the master's functions."""
+    os.environ["LABSUPPORT_GRADING_BATCH"] = "1"  # the master's own check cells stay quiet
+    from IPython.core.interactiveshell import InteractiveShell
+
+    from labsupport.grading import PUBLIC_SEED, registry
+    from labsupport.grading.feedback import DirectProbe, State
+
+    shell = InteractiveShell.instance()
+    for cell in load(MASTER).cells:
+        if cell.cell_type == "code":
+            shell.run_cell(cell.source, silent=True)
+    table = {}
+
+    class Recorder(DirectProbe):
+        def call(self, fname, *args, **kwargs):
+            value = super().call(fname, *args, **kwargs)
+            parts = [fname]
+            for a in args:
+                if isinstance(a, State):
+                    parts += [round(float(v), 6) for v in np.concatenate([a.q, a.qdot])]
+                else:
+                    parts += [round(float(v), 6) for v in np.ravel(a)]
+            if value is not None and len(table) < 400:
+                table[repr(parts)] = np.asarray(value, dtype=float).round(12).tolist()
+            return value
+
+    for name, check in registry().items():
+        if name.startswith("p1_") and name != "p1_reach":
+            check(Recorder(shell.user_ns), PUBLIC_SEED)
+    return table
+
+
+def hostile() -> dict[str, object]:
+    """``{file name: notebook}`` of the whole set."""
+    master, student = load(MASTER), load(STUDENT)
+    out = {}
+
+    def m():
+        return copy.deepcopy(master)
+
+    def s():
+        return copy.deepcopy(student)
+
+    # mistakes and misbehaviour on a correct notebook
+    nb = m()
+    del nb.cells[_defining(nb, "pd_torque")]
+    out["deleted_cell.ipynb"] = nb
+    out["exits.ipynb"] = insert_after(m(), _imports(master), "import os\nos._exit(3)")
+    out["hangs_cell.ipynb"] = insert_after(m(), _defining(master, "pd_torque"), "while True:\n    pass")
+    out["hangs_forever.ipynb"] = insert_after(
+        m(),
+        _imports(master),
+        "import time\nwhile True:\n    try:\n        time.sleep(0.5)\n    except BaseException:\n        pass",
+    )
+    out["hangs_in_call.ipynb"] = replace_function(
+        m(), "pd_torque", "def pd_torque(model, data, q_d, Kp, Kd):\n    while True:\n        pass"
+    )
+    out["kills_grader.ipynb"] = insert_after(
+        m(), _imports(master), "import os, signal\nos.kill(os.getppid(), signal.SIGKILL)\nos.kill(-1, signal.SIGKILL)"
+    )
+    nb = insert_after(m(), _imports(master), "ratio = 1 / 0   # a bug at the top")
+    out["raises.ipynb"] = replace_function(
+        nb,
+        "ct_joint_torque",
+        "def ct_joint_torque(model, data, q_d, Kp, Kd):\n    raise RuntimeError('work in progress')",
+    )
+    out["returns_nan.ipynb"] = replace_function(
+        m(), "ct_joint_torque", "def ct_joint_torque(model, data, q_d, Kp, Kd):\n    return np.full(3, np.nan)"
+    )
+    nb = m()
+    imports = nb.cells.pop(_imports(nb))
+    nb.cells.insert(_defining(nb, "ik_3r") + 1, imports)
+    out["reordered.ipynb"] = nb
+    monkey = (
+        "import labsupport.grading, labsupport.grading.problem1 as p1, labsupport.grading.feedback as fb\n"
+        "import labsupport.dynamics, labsupport.sim, mujoco\n"
+        "everything_passes = lambda *args: fb.passed('x', 'all good')\n"
+        "p1.CHECKS = {name: everything_passes for name in ('p1_ik', 'p1_pd', 'p1_ct', 'p1_reach')}\n"
+        "labsupport.grading.registry = lambda: p1.CHECKS\n"
+        "labsupport.dynamics.mass_matrix = lambda *a, **k: np.eye(3)\n"
+        "mujoco.mj_step = lambda *a, **k: None\n"
+    )
+    nb = insert_after(m(), _imports(master), monkey)
+    for fname in TODO_FUNCTIONS:
+        args = "x, elbow_up=True" if fname == "ik_3r" else "model, data, q_d, Kp, Kd"
+        replace_function(nb, fname, f"def {fname}({args}):\n    return np.zeros(3)")
+    out["monkeypatch.ipynb"] = nb
+    nb = s()
+    for cell in nb.cells:  # outputs claiming every check passed, on a notebook that implements nothing
+        if cell.cell_type == "code" and cell.source.startswith("check("):
+            name = cell.source.split('"')[1]
+            cell.outputs = [nbformat.v4.new_output("stream", name="stdout", text=f"✔ [{name}] all good\n")]
+    out["fake_outputs.ipynb"] = nb
+    # attacks, each on a notebook that implements nothing
+    out["escapes.ipynb"] = insert_after(s(), _imports(student), ESCAPE)
+    out["writes_everywhere.ipynb"] = insert_after(s(), _imports(student), WRITES_EVERYWHERE)
+    out["masters_via_interpreter.ipynb"] = insert_after(s(), len(student.cells) - 1, MASTERS_VIA_INTERPRETER)
+    out["memory_hog.ipynb"] = insert_after(s(), _imports(student), MEMORY_HOG)
+    out["fork_bomb.ipynb"] = insert_after(s(), _imports(student), FORK_BOMB)
+    nb = s()
+    for fname in TODO_FUNCTIONS:
+        del nb.cells[_defining(nb, fname)]
+    out["memoriser.ipynb"] = insert_after(nb, _imports(nb), memoriser(record_public_answers()))
+    return {name: nbformat.writes(nb) + "\n" for name, nb in out.items()}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--check", action="store_true", help="only compare with the committed files")
+    args = parser.parse_args(argv)
+    files = hostile()
+    if args.check:
+        stale = [n for n, text in files.items() if (HERE / n).read_text(encoding="utf-8") != text]
+        if stale:
+            print("out of date: " + ", ".join(stale) + "; run python tests/hostile/build.py", file=sys.stderr)
+            return 1
+        return 0
+    for name, text in files.items():
+        (HERE / name).write_text(text, encoding="utf-8")
+    (HERE / "writes_deletes_files.ipynb").unlink(missing_ok=True)  # replaced by writes_everywhere
+    print(f"wrote {len(files)} notebooks to {HERE.relative_to(ROOT)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
