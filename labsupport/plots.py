@@ -1,14 +1,15 @@
 r"""The figure layouts the notebooks share, and planar-arm animations as MP4 video.
 
 The figure functions return a pyplot figure, which a notebook's inline backend shows at the
-end of the cell; the animation draws on a figure of its own, off pyplot, and returns frames. Videos are drawn with Matplotlib's Agg
-canvas frame by frame and encoded by :mod:`mediapy` (H.264 MP4), a few hundred kilobytes
-each, instead of frame-by-frame HTML.
+end of the cell; the animation draws on a figure of its own, off pyplot, and returns frames.
+Videos are drawn with Matplotlib's Agg canvas frame by frame and encoded by :mod:`mediapy`
+(H.264 MP4), a few hundred kilobytes each, instead of frame-by-frame HTML.
 """
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+import itertools
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -23,48 +24,113 @@ def _figure(figsize, nrows=1, ncols=1, **kwargs):
     return plt.subplots(nrows, ncols, figsize=figsize, squeeze=False, layout="constrained", **kwargs)
 
 
-def joint_tracking_figure(t, desired, runs: Mapping[str, np.ndarray], title: str = "", unit: str = "deg"):
-    r"""Two stacked panels: the angle of each run beside the desired one, and the error
-    :math:`\theta - \theta_d`.
+#: What a single-joint panel can show: its axis label and how to read it from a ``sim.Log``
+#: (``reference(t)`` gives the desired motion, for the error).
+SINGLE_JOINT_QUANTITIES = {
+    "angle": ("θ [deg]", lambda log, ref: np.degrees(log.q[:, 0])),
+    "rate": (r"$\dot\theta$ [deg/s]", lambda log, ref: np.degrees(log.qdot[:, 0])),
+    "speed": ("ω [rad/s]", lambda log, ref: log.qdot[:, 0]),
+    "torque": ("τ [N·m]", lambda log, ref: log.tau[:, 0]),
+    "effort": ("∫τ² dt [N²·m²·s]", lambda log, ref: cumulative_effort(log.t, log.tau[:, 0])),
+    "error": (r"$\theta - \theta_d$ [deg]", lambda log, ref: np.degrees(log.q[:, 0] - ref(log.t).pos)),
+}
+_LINE_STYLES = ("-", "--", "-.", ":")
+
+
+def single_joint_panel(
+    ax,
+    runs: Mapping[str, object],
+    quantity: str,
+    *,
+    reference=None,
+    level=None,
+    limit: float | None = None,
+    title: str = "",
+    legend: bool = True,
+):
+    r"""Draw one ``quantity`` of :data:`SINGLE_JOINT_QUANTITIES` for every run on ``ax``.
 
     Args:
-        t: (N,) time [s].
-        desired: (N,) desired angle, in ``unit``.
-        runs: label -> (N,) angle, in ``unit``.
+        runs: label -> ``sim.Log`` of a one-joint arm; runs after the first are dashed, dash-dotted...
+        reference: ``reference(t) -> Reference`` (radians); drawn as "desired" on an angle panel
+            and subtracted on an error panel.
+        level: ``(label, value)``, a dotted horizontal line, in the panel's unit before the
+            conversion to degrees (radians for an angle, rad/s for a speed).
+        limit: the actuator limit, drawn as red dotted lines at :math:`\pm` ``limit`` on a torque panel.
     """
-    fig, axes = _figure((8, 5), 2, 1, sharex=True)
-    top, bottom = axes[:, 0]
-    top.plot(t, desired, "k--", lw=1.5, label="desired")
-    for label, theta in runs.items():
-        top.plot(t, theta, lw=1.6, label=label)
-        bottom.plot(t, theta - desired, lw=1.6, label=label)
-    top.set_ylabel(rf"$\theta$ [{unit}]")
-    bottom.set_ylabel(rf"$\theta - \theta_d$ [{unit}]")
-    bottom.axhline(0.0, color="0.5", lw=0.8, ls=":")
-    bottom.set_xlabel("time [s]")
-    for ax in (top, bottom):
-        ax.grid(True, alpha=0.4)
+    if quantity not in SINGLE_JOINT_QUANTITIES:
+        raise ValueError(f"unknown quantity {quantity!r}; choose one of {list(SINGLE_JOINT_QUANTITIES)}")
+    if quantity == "error" and reference is None:
+        raise ValueError("an error panel needs the reference: pass reference=<function of t>")
+    ylabel, read = SINGLE_JOINT_QUANTITIES[quantity]
+    first = next(iter(runs.values()))
+    if reference is not None and quantity == "angle":
+        ax.plot(first.t, np.degrees(reference(first.t).pos), "k--", lw=1.2, label="desired")
+    for (label, log), style in zip(runs.items(), itertools.cycle(_LINE_STYLES)):
+        ax.plot(log.t, read(log, reference), style, label=label)
+    if level is not None:
+        text, value = level
+        ax.axhline(np.degrees(value) if quantity in ("angle", "rate") else value, color="gray", ls=":", label=text)
+    if limit is not None and quantity == "torque":
+        for sign in (-1, 1):
+            ax.axhline(sign * limit, color="tab:red", ls=":")
+    ax.set(xlabel="time [s]", ylabel=ylabel, title=title)
+    ax.grid(True, alpha=0.4)
+    if legend:
         ax.legend(fontsize=8)
-    if title:
-        top.set_title(title, fontsize=10)
+
+
+def single_joint_figure(
+    runs: Mapping[str, object],
+    quantities: Sequence[str],
+    *,
+    titles: Sequence[str] = (),
+    side_by_side: bool = False,
+    reference=None,
+    level=None,
+    limit: float | None = None,
+    suptitle: str = "",
+):
+    """Runs of a one-joint arm compared panel by panel, one panel per quantity (``"angle"``,
+    ``"rate"``, ``"speed"``, ``"torque"``, ``"effort"``, ``"error"``), stacked over a shared time
+    axis or side by side. ``reference``, ``level`` and ``limit`` are as in
+    :func:`single_joint_panel` (``level`` goes on the first panel); ``titles`` name the panels in
+    order; the legend is on every side-by-side panel, on the top one when stacked.
+    """
+    n = len(quantities)
+    shape, size = ((1, n), (5 * n, 3.4)) if side_by_side else ((n, 1), (8, 1.1 + 1.8 * n))
+    fig, axes = _figure(size, *shape, sharex=not side_by_side)
+    axes = axes.ravel()
+    for i, (ax, quantity) in enumerate(zip(axes, quantities, strict=True)):
+        single_joint_panel(
+            ax,
+            runs,
+            quantity,
+            reference=reference,
+            level=level if i == 0 else None,
+            limit=limit,
+            title=titles[i] if i < len(titles) else "",
+            legend=side_by_side or i == 0,
+        )
+        if not side_by_side and i < n - 1:
+            ax.set_xlabel("")  # the shared time axis is labelled once, at the bottom
+    if suptitle:
+        fig.suptitle(suptitle)
     return fig
 
 
-def effort_figure(t, torques: Mapping[str, np.ndarray], limit: float | None = None):
-    r"""Applied torque of each run and its cumulative effort :math:`\int_0^t \lVert\tau\rVert^2 dt'`."""
-    fig, axes = _figure((9, 3.2), 1, 2)
-    left, right = axes[0]
-    for label, tau in torques.items():
-        left.plot(t, tau, lw=1.4, label=label)
-        right.plot(t, cumulative_effort(t, tau), lw=1.6, label=label)
-    if limit is not None:
-        for sign in (-1, 1):
-            left.axhline(sign * limit, color="r", lw=0.8, ls="--")
-    left.set(xlabel="time [s]", ylabel=r"$\tau$ [N·m]", title="applied torque")
-    right.set(xlabel="time [s]", ylabel=r"$\int\tau^2\,dt$ [N²·m²·s]", title="cumulative effort")
-    for ax in (left, right):
+def closed_form_figure(panels: Mapping[str, Mapping[str, tuple]], ylabel: str):
+    """Simulations (dots) on top of their closed forms (lines), one panel per title; each
+    panel maps a label to ``(t, closed_form, simulated)``; the panels share the y axis."""
+    fig, axes = _figure((10, 3.6), 1, len(panels), sharey=True)
+    for ax, (title, curves) in zip(axes[0], panels.items(), strict=True):
+        for label, (t, closed_form, simulated) in curves.items():
+            (line,) = ax.plot(t, closed_form, label=label)
+            ax.plot(t, simulated, "o", ms=3, color=line.get_color())
+        ax.set(title=title, xlabel="time [s]")
         ax.grid(True, alpha=0.4)
         ax.legend(fontsize=8)
+    axes[0, 0].set_ylabel(ylabel)
     return fig
 
 
@@ -141,6 +207,7 @@ def circle_tracking_figure(runs: Mapping[str, object], desired_path):
 # Planar-arm animation
 # ---------------------------------------------------------------------------------------
 
+
 def frame_indices(n_samples: int, dt: float, fps: float, speed: float = 1.0) -> np.ndarray:
     """Which samples (spaced ``dt`` seconds) to show for a video at ``fps`` played ``speed`` times real time."""
     if n_samples <= 0:
@@ -149,8 +216,14 @@ def frame_indices(n_samples: int, dt: float, fps: float, speed: float = 1.0) -> 
     return np.arange(0, n_samples, stride)
 
 
-def planar_arm_frames(panels: Sequence[Mapping], arm, t=None, frames: np.ndarray | None = None,
-                      size: tuple[int, int] = (480, 240), limits=None) -> np.ndarray:
+def planar_arm_frames(
+    panels: Sequence[Mapping],
+    arm,
+    t=None,
+    frames: np.ndarray | None = None,
+    size: tuple[int, int] = (480, 240),
+    limits=None,
+) -> np.ndarray:
     r"""RGB frames of one or more 2R arms side by side, drawn with Matplotlib.
 
     Args:
@@ -185,7 +258,7 @@ def planar_arm_frames(panels: Sequence[Mapping], arm, t=None, frames: np.ndarray
     (x0, x1), (y0, y1) = limits if limits is not None else ((-reach, reach), (-reach, reach))
 
     artists = []
-    for i, (ax, panel) in enumerate(zip(axes, panels)):
+    for i, (ax, panel) in enumerate(zip(axes, panels, strict=True)):
         color = panel.get("color", f"C{i}")
         ax.set_xlim(x0, x1)
         ax.set_ylim(y0, y1)
