@@ -457,4 +457,10 @@ def grade(
             notes.append(f"{name}: not implemented yet")
         elif statuses[name] != PASS and probe.start_problem is None:
             notes.append(f"{name}: {messages[name]}")
-    return {"status": "graded", "scores": scores, "messages": messages, "notes": notes}
+    return {
+        "status": "graded",
+        "scores": scores,
+        "messages": messages,
+        "notes": notes,
+        "sandbox_cpu": round(probe.cpu_seen, 2),
+    }

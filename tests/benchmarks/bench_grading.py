@@ -45,7 +45,9 @@ def bench(problem: str, copies: int, jobs: int, tmp: Path) -> tuple[float, float
             shutil.copy(ROOT / "tests" / "hostile" / name, subs / name)
     cpu0, t0 = children_cpu(), time.perf_counter()
     rows = run_batch(subs, ROOT / "tests" / "autograder" / f"{problem}.json", tmp / f"out-{problem}", jobs=jobs)
-    wall, cpu = time.perf_counter() - t0, children_cpu() - cpu0
+    # the judges' CPU (pool workers, reaped) plus each sandbox's own, as it reported it
+    wall = time.perf_counter() - t0
+    cpu = children_cpu() - cpu0 + sum(r.get("sandbox_cpu", 0.0) for r in rows)
     full = sum(
         1
         for r in rows
