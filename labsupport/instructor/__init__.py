@@ -6,7 +6,8 @@ submission's reach: run it from a checkout of the course repository.
 
 ==================  ===================================================================
 ``assign``          master notebook → student notebook + autograder spec
-``sandbox``         the process that runs one submission and answers calls into it
+``isolation``       the bubblewrap sandbox: what a submission sees, its limits
+``sandbox``         the server that runs one submission's cells inside it and answers calls
 ``judge``           grades one submission through a sandbox
 ``batch``           grades a folder of submissions into a CSV and feedback files
 ``canvas``          Canvas "Download Submissions" zip + gradebook export → graded gradebook to import
