@@ -47,12 +47,12 @@ def check(name: str, namespace: dict) -> Result | None:
 
     Never raises because of the student's code: a missing or broken function is reported in words.
     """
+    if os.environ.get(BATCH_ENV):  # in the batch sandbox the check modules are not even present
+        print(f"[{name}] checked separately by the batch grader")
+        return None
     checks = registry()
     if name not in checks:
         raise ValueError(f"no check named {name!r}; the checks are {sorted(checks)}")
-    if os.environ.get(BATCH_ENV):
-        print(f"[{name}] checked separately by the batch grader")
-        return None
     from labsupport.grading.feedback import DirectProbe
 
     result = checks[name](DirectProbe(namespace), PUBLIC_SEED)
