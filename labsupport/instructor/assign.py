@@ -15,6 +15,8 @@ A master (``notebooks/masters/*.ipynb``) holds the solution and the checks, in t
 * in markdown cells, text between ``<!-- BEGIN SOLUTION -->`` and ``<!-- END SOLUTION -->`` is
   removed; a cell tagged ``solution`` is dropped whole;
 * each check is a code cell ``check("name", globals())``, right after the TODO it checks.
+* a cell's ``tags`` (but ``solution``) and its ``mystnb`` metadata (the book's options for the
+  cell, e.g. a figure's alt text) are kept; other cell metadata is dropped.
 
 The student notebook keeps the checks' list in its metadata (so it needs no extra file, on
 Colab too) and the spec ``tests/autograder/<problem>.json`` tells the batch grader which checks
@@ -36,6 +38,9 @@ import nbformat
 MASTERS = Path("notebooks") / "masters"
 SPEC_DIR = Path("tests") / "autograder"
 _CHECK_CELL = re.compile(r'^check\("([a-z0-9_]+)", globals\(\)\)\s*$')
+#: Cell metadata copied as is into the student's cell: ``mystnb`` holds the book's per-cell
+#: options, such as a figure's text alternative (``{"mystnb": {"image": {"alt": ...}}}``).
+CARRIED_METADATA = ("mystnb",)
 
 
 class MasterError(ValueError):
@@ -99,6 +104,9 @@ def student_notebook(master: nbformat.NotebookNode, where: str = "master") -> nb
         tags = [t for t in cell.metadata.get("tags", []) if t != "solution"]
         if tags:
             new.metadata["tags"] = tags
+        for key in CARRIED_METADATA:
+            if key in cell.metadata:
+                new.metadata[key] = copy.deepcopy(cell.metadata[key])
         nb.cells.append(new)
     names = [c["name"] for c in meta["checks"]]
     if sorted(seen) != sorted(names):
