@@ -66,13 +66,17 @@ def solve_mass(
 ) -> np.ndarray:
     r""":math:`x = M(q)^{-1} y` using MuJoCo's sparse factorisation (no explicit inverse).
 
-    ``rhs`` is ``(nv,)`` or ``(k, nv)`` (one right-hand side per row).
+    ``rhs`` is ``(nv,)`` or ``(k, nv)`` (one right-hand side per row); ``out``, of the same
+    shape, is an optional preallocated result. With ``J`` as ``rhs`` the rows of the result
+    are those of :math:`J M^{-1}` (:math:`M` is symmetric).
     """
-    rhs = np.ascontiguousarray(rhs, dtype=float)
-    y = rhs.reshape(-1, model.nv)
-    x = np.empty_like(y) if out is None else out.reshape(-1, model.nv)
-    mujoco.mj_solveM(model, data, x, y)
-    return x.reshape(rhs.shape)
+    y = np.ascontiguousarray(rhs, dtype=float)
+    x = np.empty_like(y) if out is None else out
+    if y.ndim == 1:  # MuJoCo solves for rows
+        mujoco.mj_solveM(model, data, x[None], y[None])
+    else:
+        mujoco.mj_solveM(model, data, x, y)
+    return x
 
 
 def site_jacobian(

@@ -101,17 +101,19 @@ def second_order_error(t, e0, edot0, wn: float, zeta: float):
 # ---------------------------------------------------------------------------------------
 
 
-def rotation_error(xmat, quat_d, out=None) -> np.ndarray:
+def rotation_error(xmat, quat_d, out=None, work=None) -> np.ndarray:
     r"""Rotation error :math:`\log(R R_d^\top)` as a rotation vector [rad] (world frame), from the
     orientation ``xmat`` (3x3 or 9 numbers, row-major) and the target quaternion ``quat_d``
-    (w, x, y, z), through quaternions as the lab computes it. ``out`` is an optional (3,) result.
+    (w, x, y, z), through quaternions as the lab computes it: :math:`q` of :math:`R`, the product
+    :math:`q\,q_d^{-1}`, and its rotation vector. ``out`` is an optional (3,) result and ``work``
+    two optional (4,) scratch quaternions.
     """
-    quat, diff, conj = np.empty(4), np.empty(4), np.empty(4)
+    quat, quat_d_inv = (np.empty(4), np.empty(4)) if work is None else work
     out = np.empty(3) if out is None else out
-    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(xmat, dtype=float).reshape(9))
-    mujoco.mju_negQuat(conj, np.asarray(quat_d, dtype=float))
-    mujoco.mju_mulQuat(diff, quat, conj)
-    mujoco.mju_quat2Vel(out, diff, 1.0)
+    mujoco.mju_mat2Quat(quat, np.asarray(xmat, dtype=float).reshape(9))  # q of R
+    mujoco.mju_negQuat(quat_d_inv, quat_d)  # q_d^-1
+    mujoco.mju_mulQuat(quat, quat, quat_d_inv)  # q q_d^-1
+    mujoco.mju_quat2Vel(out, quat, 1.0)  # its rotation vector
     return out
 
 

@@ -127,7 +127,9 @@ class SampledReference:
 
     def at(self, t) -> Reference:
         """``Reference(pos, vel, acc)`` at the grid point nearest ``t``."""
-        k = self.index(t)
+        k = int(t / self.dt + 0.5)
+        if not 0 <= k < len(self.pos):
+            self.index(t)  # raises, naming the sampled span
         return Reference(self.pos[k], self.vel[k], self.acc[k])
 
     def __call__(self, t) -> Reference:

@@ -66,20 +66,23 @@ LAB_GAINS = PoseGains(100.0, 50.0)
 
 @dataclass(frozen=True)
 class PoseArrays:
-    """Arrays the laws fill at every step, allocated once for a model (:meth:`for_model`).
+    r"""Arrays the laws fill at every step, allocated once for a model (:meth:`for_model`).
 
     Attributes:
-        J: (6, nv) site Jacobian. e: (6,) pose error.
+        J: (6, nv) site Jacobian. e: (6,) pose error. quats: two (4,) scratch quaternions.
         xdot_d, xddot_d: (6,) the target's twist and its rate (the angular parts stay zero:
             the target orientation is constant).
+        jdot_qdot: (6,) :math:`\dot J\dot q`.
         JMinv: (6, nv) :math:`J M^{-1}`. lam_inv: (6, 6) :math:`J M^{-1} J^\top`, then its
             Cholesky factor. z: (6,) a task-space force.
     """
 
     J: np.ndarray
     e: np.ndarray
+    quats: tuple[np.ndarray, np.ndarray]
     xdot_d: np.ndarray
     xddot_d: np.ndarray
+    jdot_qdot: np.ndarray
     JMinv: np.ndarray
     lam_inv: np.ndarray
     z: np.ndarray
@@ -88,15 +91,24 @@ class PoseArrays:
     def for_model(cls, model: mujoco.MjModel) -> PoseArrays:
         nv = model.nv
         return cls(
-            np.zeros((6, nv)), np.zeros(6), np.zeros(6), np.zeros(6), np.zeros((6, nv)), np.zeros((6, 6)), np.zeros(6)
+            J=np.zeros((6, nv)),
+            e=np.zeros(6),
+            quats=(np.zeros(4), np.zeros(4)),
+            xdot_d=np.zeros(6),
+            xddot_d=np.zeros(6),
+            jdot_qdot=np.zeros(6),
+            JMinv=np.zeros((6, nv)),
+            lam_inv=np.zeros((6, 6)),
+            z=np.zeros(6),
         )
 
 
-def pose_error(data: mujoco.MjData, site: int, x_d, quat_d, out: np.ndarray) -> np.ndarray:
+def pose_error(data: mujoco.MjData, site: int, x_d, quat_d, out: np.ndarray, work=None) -> np.ndarray:
     r"""Pose error :math:`e = (x - x_d,\ \log(R R_d^\top))` of site ``site`` (an id), written
-    into ``out`` (6,): metres, then a rotation vector in radians (world frame)."""
+    into ``out`` (6,): metres, then a rotation vector in radians (world frame). ``work`` holds
+    two optional scratch quaternions (:attr:`PoseArrays.quats`)."""
     np.subtract(data.site_xpos[site], x_d, out=out[:3])
-    rotation_error(data.site_xmat[site], quat_d, out=out[3:])
+    rotation_error(data.site_xmat[site], quat_d, out=out[3:], work=work)
     return out
 
 
@@ -150,13 +162,16 @@ def tracking_torque(
     :math:`\Lambda` is applied by MuJoCo's Cholesky solve of :math:`J M^{-1} J^\top`.
     """
     J = site_jacobian(model, data, site, out=arrays.J)
-    e = pose_error(data, site, x_d, quat_d, out=arrays.e)
+    e = pose_error(data, site, x_d, quat_d, out=arrays.e, work=arrays.quats)
     arrays.xdot_d[:3], arrays.xddot_d[:3] = xdot_d, xddot_d
-    jdot_qdot = site_jdot_qdot(model, data, site) if jdot else 0.0
+    jdot_qdot = site_jdot_qdot(model, data, site, out=arrays.jdot_qdot) if jdot else 0.0
     a = arrays.xddot_d - gains.kd * (J @ data.qvel - arrays.xdot_d) - gains.kp * e - jdot_qdot
     JMinv = solve_mass(model, data, J, out=arrays.JMinv)  # J M^-1 (M is symmetric)
-    L = np.matmul(JMinv, J.T, out=arrays.lam_inv)  # Lambda^-1 = J M^-1 J^T, ...
+    L = arrays.lam_inv
+    mujoco.mju_mulMatMatT(L, JMinv, J)  # Lambda^-1 = J M^-1 J^T, ...
     mujoco.mju_cholFactor(L, 0.0)  # ... its Cholesky factor
-    mujoco.mju_cholSolve(arrays.z, L, a)  # z = Lambda a
-    tau_r = J.T @ arrays.z + data.qfrc_bias
-    return tau_r + implicit_inertia * solve_mass(model, data, tau_r - data.qfrc_bias)
+    z = arrays.z
+    mujoco.mju_cholSolve(z, L, a)  # z = Lambda a
+    tau_r = J.T @ z + data.qfrc_bias
+    qddot = JMinv.T @ z  # M^-1 (tau_r - h) = M^-1 J^T Lambda a
+    return tau_r + implicit_inertia * qddot
