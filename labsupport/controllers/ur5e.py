@@ -159,7 +159,9 @@ def tracking_torque(
     its orientation ``quat_d`` is constant. ``implicit_inertia`` is the diagonal
     :math:`\Delta t\,K_v` (:func:`labsupport.actuators.implicit_damping`; zeros leave the
     compensation out), and ``jdot=False`` leaves :math:`\dot J\dot q` out.
-    :math:`\Lambda` is applied by MuJoCo's Cholesky solve of :math:`J M^{-1} J^\top`.
+    :math:`\Lambda` is applied by MuJoCo's Cholesky solve of :math:`J M^{-1} J^\top`, and since
+    :math:`\tau_r - h = J^\top\Lambda a`, the acceleration :math:`M^{-1}(\tau_r - h)` is
+    :math:`(J M^{-1})^\top \Lambda a`, read off the :math:`J M^{-1}` already at hand.
     """
     J = site_jacobian(model, data, site, out=arrays.J)
     e = pose_error(data, site, x_d, quat_d, out=arrays.e, work=arrays.quats)
