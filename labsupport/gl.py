@@ -15,8 +15,7 @@ import sys
 #: Where glvnd looks for EGL vendor files; Colab's NVIDIA driver ships none.
 NVIDIA_EGL_VENDOR_FILE = "/usr/share/glvnd/egl_vendor.d/10_nvidia.json"
 _NVIDIA_EGL_VENDOR_JSON = (
-    '{\n  "file_format_version" : "1.0.0",\n'
-    '  "ICD" : { "library_path" : "libEGL_nvidia.so.0" }\n}\n'
+    '{\n  "file_format_version" : "1.0.0",\n  "ICD" : { "library_path" : "libEGL_nvidia.so.0" }\n}\n'
 )
 
 
@@ -66,10 +65,10 @@ def egl_works() -> bool:
         display_addr = egl.eglGetProcAddress(b"eglGetPlatformDisplayEXT")
         if not (query_addr and display_addr):
             return False
-        query = ctypes.CFUNCTYPE(ctypes.c_uint, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p),
-                                 ctypes.POINTER(ctypes.c_int))(query_addr)
-        get_display = ctypes.CFUNCTYPE(ctypes.c_void_p, ctypes.c_uint, ctypes.c_void_p,
-                                       ctypes.c_void_p)(display_addr)
+        query = ctypes.CFUNCTYPE(
+            ctypes.c_uint, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_int)
+        )(query_addr)
+        get_display = ctypes.CFUNCTYPE(ctypes.c_void_p, ctypes.c_uint, ctypes.c_void_p, ctypes.c_void_p)(display_addr)
         devices, count = (ctypes.c_void_p * 16)(), ctypes.c_int(0)
         if not query(16, devices, ctypes.byref(count)):
             return False
@@ -92,8 +91,7 @@ def osmesa_works() -> bool:
     try:
         lib = ctypes.CDLL(name)
         lib.OSMesaCreateContextExt.restype = ctypes.c_void_p
-        lib.OSMesaCreateContextExt.argtypes = [ctypes.c_uint, ctypes.c_int, ctypes.c_int,
-                                               ctypes.c_int, ctypes.c_void_p]
+        lib.OSMesaCreateContextExt.argtypes = [ctypes.c_uint, ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_void_p]
         lib.OSMesaDestroyContext.argtypes = [ctypes.c_void_p]
         context = lib.OSMesaCreateContextExt(_OSMESA_RGBA, 24, 0, 0, None)
         if not context:

@@ -24,9 +24,8 @@ import sys
 from pathlib import Path
 
 import nbformat
-import pytest
-
 import nbtools
+import pytest
 
 pytestmark = pytest.mark.fresh_venv
 
@@ -78,8 +77,7 @@ def test_task1_runs_in_a_fresh_venv(tmp_path):
     _run([base_python, "-m", "venv", str(venv)])  # no --system-site-packages: nothing leaks in
     py = venv / "bin" / "python"
 
-    env = {k: v for k, v in os.environ.items()
-           if k not in {"PYTHONPATH", "VIRTUAL_ENV", "PYTHONHOME", "PYTHONSTARTUP"}}
+    env = {k: v for k, v in os.environ.items() if k not in {"PYTHONPATH", "VIRTUAL_ENV", "PYTHONHOME", "PYTHONSTARTUP"}}
     env["MUJOCO_GL"] = env.get("MUJOCO_GL", "egl")
     env["PIP_DISABLE_PIP_VERSION_CHECK"] = "1"
 
@@ -94,23 +92,31 @@ def test_task1_runs_in_a_fresh_venv(tmp_path):
     _run([str(py), "-m", "pip", "install", "-q", *runner], cwd=work, env=env, timeout=900)
 
     # Nothing of the project's own environment is visible in the new one.
-    probe = _run([str(py), "-c", "import sys; print(sys.prefix); import importlib.util as u; "
-                  "print(u.find_spec('jupyter_book') is None)"], cwd=work, env=env)
+    probe = _run(
+        [
+            str(py),
+            "-c",
+            "import sys; print(sys.prefix); import importlib.util as u; print(u.find_spec('jupyter_book') is None)",
+        ],
+        cwd=work,
+        env=env,
+    )
     prefix, no_book = probe.stdout.split()
     assert Path(prefix) == venv and no_book == "True"
 
     executed = work / "executed.ipynb"
-    out = _run([str(py), "-c", RUN_NOTEBOOK, str(NOTEBOOK), str(executed), str(work)],
-               cwd=work, env=env, timeout=900)
+    out = _run([str(py), "-c", RUN_NOTEBOOK, str(NOTEBOOK), str(executed), str(work)], cwd=work, env=env, timeout=900)
     facts = json.loads(out.stdout.strip().splitlines()[-1])
     assert Path(facts["prefix"]) == venv, "the notebook ran in another Python"
-    assert Path(facts["labsupport"]).is_relative_to(venv), \
+    assert Path(facts["labsupport"]).is_relative_to(venv), (
         f"labsupport came from {facts['labsupport']}, not from the fresh install"
+    )
     assert Path(facts["model"]).is_relative_to(venv) and Path(facts["model"]).is_file()
 
     nb = nbformat.read(str(executed), as_version=4)
-    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
-              if o.get("output_type") == "error"]
+    errors = [
+        o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []) if o.get("output_type") == "error"
+    ]
     assert not errors, f"the notebook raised: {errors[0].get('ename')}: {errors[0].get('evalue')}"
     ran = [c for c in nb.cells if c.cell_type == "code" and c.get("execution_count")]
     assert len(ran) == sum(c.cell_type == "code" for c in nb.cells), "not every cell ran"

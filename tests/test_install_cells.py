@@ -9,10 +9,9 @@ import sys
 from unittest import mock
 
 import nbformat
+import nbtools
 import pytest
 import yaml
-
-import nbtools
 
 NOTEBOOKS = nbtools.notebook_paths()
 
@@ -31,10 +30,12 @@ def test_there_are_notebooks():
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
 def test_install_cell_matches_config(path):
     nb, cell = first_code_cell(path)
-    assert nb.cells[0].cell_type == "markdown" and nb.cells[0].source.lstrip().startswith("#"), \
+    assert nb.cells[0].cell_type == "markdown" and nb.cells[0].source.lstrip().startswith("#"), (
         f"{path.name}: the first cell must be the markdown title"
-    assert cell.source == nbtools.install_cell_source(), \
+    )
+    assert cell.source == nbtools.install_cell_source(), (
         f"{path.name}: first code cell differs from nbtools.install_cell_source(); regenerate it"
+    )
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
@@ -75,8 +76,7 @@ def _run_install_cell(installed: bool) -> list:
             return real_find_spec(name) if installed else None
         return real_find_spec(name, *args, **kwargs)
 
-    with mock.patch.object(subprocess, "run", fake_run), \
-            mock.patch.object(importlib.util, "find_spec", fake_find_spec):
+    with mock.patch.object(subprocess, "run", fake_run), mock.patch.object(importlib.util, "find_spec", fake_find_spec):
         exec(compile(nbtools.install_cell_source(), "<install cell>", "exec"), {})
     return calls
 

@@ -62,13 +62,15 @@ def test_jacobian_matches_finite_differences():
     rng = np.random.default_rng(2)
     eps = 1e-6
     for q in rng.uniform(-np.pi, np.pi, size=(30, 2)):
-        fd = np.column_stack([(k2.forward_kinematics(q + eps * e) - k2.forward_kinematics(q - eps * e)) / (2 * eps)
-                              for e in np.eye(2)])
+        fd = np.column_stack(
+            [(k2.forward_kinematics(q + eps * e) - k2.forward_kinematics(q - eps * e)) / (2 * eps) for e in np.eye(2)]
+        )
         np.testing.assert_allclose(k2.jacobian(q), fd, atol=1e-8)
 
 
 def test_jacobian_matches_mujoco(arm_model):
     from labsupport.dynamics import site_jacobian
+
     model, data = arm_model
     q = np.array([0.4, -1.1])
     data.qpos[:] = q
@@ -108,7 +110,7 @@ def test_the_two_branches_are_mirror_images():
     x = np.array([0.6, 0.3])
     up, down = k2.inverse_kinematics(x, branch="up"), k2.inverse_kinematics(x, branch="down")
     assert up[1] == pytest.approx(-down[1])
-    phi = np.arctan2(x[1], x[0])        # both elbows mirror about the line to the target
+    phi = np.arctan2(x[1], x[0])  # both elbows mirror about the line to the target
     assert up[0] - phi == pytest.approx(-(down[0] - phi))
 
 
@@ -135,6 +137,7 @@ def test_bad_arguments():
 
 def test_joint_reference_reproduces_the_cartesian_one():
     from labsupport.trajectories import circle_2d
+
     t = np.linspace(0, 6, 301)
     ref = circle_2d(t, (0.5, 0.2), 0.15, 6.0)
     jref = k2.joint_reference(ref)

@@ -1,4 +1,4 @@
-"""Serve MathJax from the site itself, so equations render without a CDN (offline previews,
+r"""Serve MathJax from the site itself, so equations render without a CDN (offline previews,
 the browser tests, readers behind a firewall).
 
 MathJax 3's files come from the pinned PyPI package ``sphinx-mathjax-offline`` (Apache-2.0).

@@ -64,7 +64,7 @@ def strip_code(source: str, where: str) -> str:
             continue
         elif marker.startswith("# STUDENT:"):
             indent = line[: len(line) - len(line.lstrip())]
-            out.append(indent + marker[len("# STUDENT:"):].lstrip())
+            out.append(indent + marker[len("# STUDENT:") :].lstrip())
         else:
             out.append(line)
     if inside:
@@ -83,9 +83,11 @@ def student_notebook(master: nbformat.NotebookNode, where: str = "master") -> nb
     if not meta or not {"problem", "student", "checks"} <= set(meta):
         raise MasterError(f"{where}: metadata 'labsupport_grading' with problem, student and checks is missing")
     nb = nbformat.v4.new_notebook()
-    nb.metadata = {"kernelspec": copy.deepcopy(master.metadata.get("kernelspec", {})),
-                   "language_info": {"name": "python"},
-                   "labsupport_grading": {"problem": meta["problem"], "checks": copy.deepcopy(meta["checks"])}}
+    nb.metadata = {
+        "kernelspec": copy.deepcopy(master.metadata.get("kernelspec", {})),
+        "language_info": {"name": "python"},
+        "labsupport_grading": {"problem": meta["problem"], "checks": copy.deepcopy(meta["checks"])},
+    }
     seen = []
     for k, cell in enumerate(master.cells):
         if "solution" in cell.metadata.get("tags", []):
@@ -117,8 +119,12 @@ def student_notebook(master: nbformat.NotebookNode, where: str = "master") -> nb
 def spec(master: nbformat.NotebookNode, master_path: str) -> dict:
     """The autograder spec of a master: problem, notebooks, and the checks with their points."""
     meta = master.metadata["labsupport_grading"]
-    return {"problem": meta["problem"], "master": master_path, "student": meta["student"],
-            "checks": [{"name": c["name"], "points": c["points"], "title": c["title"]} for c in meta["checks"]]}
+    return {
+        "problem": meta["problem"],
+        "master": master_path,
+        "student": meta["student"],
+        "checks": [{"name": c["name"], "points": c["points"], "title": c["title"]} for c in meta["checks"]],
+    }
 
 
 def render(nb: nbformat.NotebookNode) -> str:

@@ -34,6 +34,8 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+from labsupport.grading import rules
+
 try:
     import tomllib
 except ImportError:  # Python 3.10
@@ -45,9 +47,6 @@ CHECKOUT = Path(__file__).resolve().parents[2]
 PYTHON_HOME, VENV, STUDENT, RUNNER, HOME = "/opt/python", "/opt/venv", "/opt/student", "/opt/runner", "/home/student"
 #: The server's file name inside the sandbox.
 SERVER = "labsupport_sandbox.py"
-
-#: Used only until labsupport.grading.rules exists.
-FALLBACK_FORBIDDEN = ("labsupport.controllers", "labsupport.kinematics")
 
 
 @dataclass(frozen=True)
@@ -76,19 +75,6 @@ DEFAULT_LIMITS = Limits()
 
 class SandboxUnavailable(RuntimeError):
     """bubblewrap cannot run here; the message says what to do."""
-
-
-def forbidden() -> tuple[tuple[str, ...], object]:
-    """``(FORBIDDEN, forbidden_message)`` from :mod:`labsupport.grading.rules` (a fallback until it exists)."""
-    try:
-        from labsupport.grading import rules
-    except ImportError:
-        return FALLBACK_FORBIDDEN, lambda name: f"{name} is off limits in a Problem TODO: write it yourself."
-    return tuple(rules.FORBIDDEN), rules.forbidden_message
-
-
-def is_forbidden(module: str, prefixes) -> bool:
-    return any(module == p or module.startswith(p + ".") for p in prefixes)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -140,8 +126,7 @@ def __getattr__(name):
 
 def write_student_package(dest: Path, checkout: Path = CHECKOUT) -> list[str]:
     """Write the student's labsupport under ``dest``; returns the modules replaced by stubs."""
-    prefixes, message = forbidden()
-    template = message("@@NAME@@")
+    template = rules.forbidden_message("@@NAME@@")
     files = wheel_files(checkout)
     stubbed = []
     for rel, src in files.items():
@@ -150,7 +135,7 @@ def write_student_package(dest: Path, checkout: Path = CHECKOUT) -> list[str]:
         module = rel[:-3].replace("/", ".") if rel.endswith(".py") else None
         if module and module.endswith(".__init__"):
             module = module[: -len(".__init__")]
-        if module and is_forbidden(module, prefixes):
+        if module and rules.is_forbidden_module(module):
             package_dir = rel.rsplit("/", 1)[0]
             subs = (
                 sorted(

@@ -69,8 +69,7 @@ def forward_kinematics(q, arm: Planar2R = LAB_ARM) -> np.ndarray:
     r"""End-effector position :math:`x = (l_1 c_1 + l_2 c_{12},\; l_1 s_1 + l_2 s_{12})`, shape ``(..., 2)``."""
     q = _q(q)
     q1, q12 = q[..., 0], q[..., 0] + q[..., 1]
-    return np.stack([arm.l1 * np.cos(q1) + arm.l2 * np.cos(q12),
-                     arm.l1 * np.sin(q1) + arm.l2 * np.sin(q12)], axis=-1)
+    return np.stack([arm.l1 * np.cos(q1) + arm.l2 * np.cos(q12), arm.l1 * np.sin(q1) + arm.l2 * np.sin(q12)], axis=-1)
 
 
 def elbow_position(q, arm: Planar2R = LAB_ARM) -> np.ndarray:
@@ -105,8 +104,13 @@ def jdot_qdot(q, qdot, arm: Planar2R = LAB_ARM) -> np.ndarray:
     q, qdot = _q(q), _q(qdot, "qdot")
     q1, q12 = q[..., 0], q[..., 0] + q[..., 1]
     w1sq, w12sq = qdot[..., 0] ** 2, (qdot[..., 0] + qdot[..., 1]) ** 2
-    return -np.stack([arm.l1 * np.cos(q1) * w1sq + arm.l2 * np.cos(q12) * w12sq,
-                      arm.l1 * np.sin(q1) * w1sq + arm.l2 * np.sin(q12) * w12sq], axis=-1)
+    return -np.stack(
+        [
+            arm.l1 * np.cos(q1) * w1sq + arm.l2 * np.cos(q12) * w12sq,
+            arm.l1 * np.sin(q1) * w1sq + arm.l2 * np.sin(q12) * w12sq,
+        ],
+        axis=-1,
+    )
 
 
 def is_reachable(x, arm: Planar2R = LAB_ARM) -> np.ndarray:
@@ -138,8 +142,10 @@ def inverse_kinematics(x, arm: Planar2R = LAB_ARM, branch: str = "up", clip: boo
     if np.any(outside):
         r = np.linalg.norm(x, axis=-1)
         bad = float(np.atleast_1d(r)[np.atleast_1d(outside)][0])
-        message = (f"target at distance {bad:.4g} m from the base is outside the workspace "
-                   f"{arm.reach_min:.4g} m <= |x| <= {arm.reach_max:.4g} m")
+        message = (
+            f"target at distance {bad:.4g} m from the base is outside the workspace "
+            f"{arm.reach_min:.4g} m <= |x| <= {arm.reach_max:.4g} m"
+        )
         if not clip:
             raise ValueError(message + "; choose a reachable target (or pass clip=True)")
         warnings.warn(message + "; clipped onto the workspace boundary", RuntimeWarning, stacklevel=2)
@@ -149,8 +155,7 @@ def inverse_kinematics(x, arm: Planar2R = LAB_ARM, branch: str = "up", clip: boo
     return np.stack([q1, q2], axis=-1)
 
 
-def joint_reference(ref: Reference, arm: Planar2R = LAB_ARM, branch: str = "up",
-                    min_det: float = 1e-9) -> Reference:
+def joint_reference(ref: Reference, arm: Planar2R = LAB_ARM, branch: str = "up", min_det: float = 1e-9) -> Reference:
     r"""Turn a Cartesian reference :math:`(x_d, \dot x_d, \ddot x_d)` into a joint reference:
 
     .. math:: q_d = \mathrm{IK}(x_d),\qquad \dot q_d = J(q_d)^{-1}\dot x_d,\qquad
@@ -164,9 +169,11 @@ def joint_reference(ref: Reference, arm: Planar2R = LAB_ARM, branch: str = "up",
     J = jacobian(q, arm)
     det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
     if np.any(np.abs(det) < min_det):
-        raise ValueError("the path passes through a singular configuration (arm stretched or folded): "
-                         "det J = 0 there, so no joint velocity reproduces the Cartesian one; keep the path "
-                         "inside the workspace annulus")
+        raise ValueError(
+            "the path passes through a singular configuration (arm stretched or folded): "
+            "det J = 0 there, so no joint velocity reproduces the Cartesian one; keep the path "
+            "inside the workspace annulus"
+        )
     qdot = np.linalg.solve(J, xdot[..., None])[..., 0]
     qddot = np.linalg.solve(J, (xddot - jdot_qdot(q, qdot, arm))[..., None])[..., 0]
     return Reference(q, qdot, qddot)

@@ -32,8 +32,11 @@ PROSE_PAGE = "book/setup.md"
 
 def copy_checkout(dest: Path) -> None:
     """Copy the files git tracks or would track (nothing ignored: no .venv, no _build)."""
-    names = subprocess.run(["git", "-C", str(ROOT), "ls-files", "-z", "--cached", "--others",
-                            "--exclude-standard"], capture_output=True, check=True).stdout.split(b"\0")
+    names = subprocess.run(
+        ["git", "-C", str(ROOT), "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
+        capture_output=True,
+        check=True,
+    ).stdout.split(b"\0")
     for name in filter(None, names):
         src = ROOT / os.fsdecode(name)
         if src.is_file():
@@ -47,8 +50,13 @@ def build(book: Path) -> tuple[float, int, bool]:
     jupyter_book = Path(sys.executable).parent / "jupyter-book"
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     start = time.perf_counter()
-    out = subprocess.run([str(jupyter_book), "build", ".", "--builder", "html", "-W", "--keep-going"],
-                         cwd=book, env=env, capture_output=True, text=True)
+    out = subprocess.run(
+        [str(jupyter_book), "build", ".", "--builder", "html", "-W", "--keep-going"],
+        cwd=book,
+        env=env,
+        capture_output=True,
+        text=True,
+    )
     seconds = time.perf_counter() - start
     log = out.stdout + out.stderr
     executed = len(re.findall(r"Executing notebook", log))
@@ -65,18 +73,23 @@ def main() -> int:
         n_notebooks = len(list((book / "notebooks").glob("*.ipynb")))
 
         cold, executed, ok_cold = build(book)
-        print(f"cold build, {executed}/{n_notebooks} notebooks executed: {cold:7.1f} s "
-              f"(target <= {COLD_TARGET_S:.0f} s) {'ok' if cold <= COLD_TARGET_S else 'OVER TARGET'}"
-              f"{'' if ok_cold else '  [BUILD FAILED]'}")
+        print(
+            f"cold build, {executed}/{n_notebooks} notebooks executed: {cold:7.1f} s "
+            f"(target <= {COLD_TARGET_S:.0f} s) {'ok' if cold <= COLD_TARGET_S else 'OVER TARGET'}"
+            f"{'' if ok_cold else '  [BUILD FAILED]'}"
+        )
 
         page = book / PROSE_PAGE
-        page.write_text(page.read_text(encoding="utf-8")
-                        + "\nThis sentence was added by the build benchmark.\n", encoding="utf-8")
+        page.write_text(
+            page.read_text(encoding="utf-8") + "\nThis sentence was added by the build benchmark.\n", encoding="utf-8"
+        )
         prose, executed, ok_prose = build(book)
-        print(f"rebuild after a prose-only change to {PROSE_PAGE}, {executed} notebooks executed: "
-              f"{prose:7.1f} s (target <= {PROSE_TARGET_S:.0f} s) "
-              f"{'ok' if prose <= PROSE_TARGET_S and executed == 0 else 'OVER TARGET'}"
-              f"{'' if ok_prose else '  [BUILD FAILED]'}")
+        print(
+            f"rebuild after a prose-only change to {PROSE_PAGE}, {executed} notebooks executed: "
+            f"{prose:7.1f} s (target <= {PROSE_TARGET_S:.0f} s) "
+            f"{'ok' if prose <= PROSE_TARGET_S and executed == 0 else 'OVER TARGET'}"
+            f"{'' if ok_prose else '  [BUILD FAILED]'}"
+        )
         html = (book / "_build" / "html" / PROSE_PAGE).with_suffix(".html")
         if "added by the build benchmark" not in html.read_text(encoding="utf-8"):
             print("the rebuilt page does not show the change")

@@ -30,14 +30,22 @@ SITE = Path(os.environ.get("BOOK_HTML", ROOT / "_build" / "html")).resolve()
 ARTIFACTS = ROOT / "tests" / "artifacts"
 CHROMIUM = os.environ.get("CHROMIUM", "/usr/bin/chromium")
 CHROMIUM_ARGS = [
-    "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-    "--disable-component-update", "--disable-sync", "--no-first-run",
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
     "--autoplay-policy=no-user-gesture-required",
 ]
 #: Pages whose screenshots are saved under tests/artifacts/screenshots.
 SCREENSHOT_PAGES = (
-    "book/intro", "book/theory", "notebooks/task1_single_joint",
-    "notebooks/task3_planar_2r", "notebooks/task4_ur5e",
+    "book/intro",
+    "book/theory",
+    "notebooks/task1_single_joint",
+    "notebooks/task3_planar_2r",
+    "notebooks/task4_ur5e",
 )
 VIEWPORT = {"width": 1280, "height": 900}
 
@@ -61,6 +69,7 @@ def toc_pages() -> list[str]:
             walk(entry.get("sections"))
             for part in entry.get("parts", []) or []:
                 walk(part.get("chapters"))
+
     for part in toc.get("parts", []) or []:
         walk(part.get("chapters"))
     walk(toc.get("chapters"))
@@ -87,8 +96,10 @@ def expected_colab_url(page: str) -> str:
 
 def require_site() -> Path:
     if not (SITE / "index.html").exists():
-        pytest.fail(f"no built site at {SITE}: run `bash .ci/build-book` first "
-                    "(tests/site checks the built book)", pytrace=False)
+        pytest.fail(
+            f"no built site at {SITE}: run `bash .ci/build-book` first (tests/site checks the built book)",
+            pytrace=False,
+        )
     return SITE
 
 
@@ -228,8 +239,10 @@ def _local_size(site: Path, server: str, url: str) -> int | None:
 @pytest.fixture(scope="session")
 def browser():
     if not Path(CHROMIUM).exists():
-        pytest.fail(f"Chromium not found at {CHROMIUM}: install Debian's `chromium` "
-                    "(bash .ci/setup does), or set $CHROMIUM", pytrace=False)
+        pytest.fail(
+            f"Chromium not found at {CHROMIUM}: install Debian's `chromium` (bash .ci/setup does), or set $CHROMIUM",
+            pytrace=False,
+        )
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as p:
@@ -253,14 +266,21 @@ def visit(browser, server, site):
             return cache[page]
         report = PageReport(page)
         context = browser.new_context(viewport=VIEWPORT)
-        context.route(re.compile(r"^https?://(?!127\.0\.0\.1[:/]).*"),
-                      lambda route, request: refuse_external(route, request, report))
+        context.route(
+            re.compile(r"^https?://(?!127\.0\.0\.1[:/]).*"),
+            lambda route, request: refuse_external(route, request, report),
+        )
         tab = context.new_page()
-        tab.on("console", lambda msg: report.console_errors.append(
-            f"{msg.text} @ {msg.location.get('url', '')}") if msg.type == "error" else None)
+        tab.on(
+            "console",
+            lambda msg: (
+                report.console_errors.append(f"{msg.text} @ {msg.location.get('url', '')}")
+                if msg.type == "error"
+                else None
+            ),
+        )
         tab.on("pageerror", lambda exc: report.page_errors.append(str(exc)))
-        tab.on("requestfailed", lambda req: report.failed_requests.append(
-            f"{req.url} ({req.failure})"))
+        tab.on("requestfailed", lambda req: report.failed_requests.append(f"{req.url} ({req.failure})"))
 
         def on_response(resp):
             if resp.status >= 400:
@@ -268,6 +288,7 @@ def visit(browser, server, site):
             size = _local_size(site, server, resp.url)
             if size is not None:
                 report.loaded[resp.url.split("?")[0]] = size
+
         tab.on("response", on_response)
         tab.goto(f"{server}/{page}.html", wait_until="load")
         report.math = tab.evaluate(MATH_JS)

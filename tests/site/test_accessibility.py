@@ -33,12 +33,10 @@ def test_page_meets_wcag21_aa(browser, server, axe, page):
     context = browser.new_context(viewport=VIEWPORT)
     try:
         tab = context.new_page()
-        tab.route("**/*", lambda route, request: route.continue_() if request.url.startswith(server)
-                  else route.abort())
+        tab.route("**/*", lambda route, request: route.continue_() if request.url.startswith(server) else route.abort())
         tab.goto(f"{server}/{page}.html", wait_until="load")
         tab.evaluate("async () => { if (window.MathJax?.startup?.promise) await MathJax.startup.promise; }")
-        results = axe.run(tab, options={"runOnly": {"type": "tag", "values": WCAG_TAGS},
-                                        "resultTypes": ["violations"]})
+        results = axe.run(tab, options={"runOnly": {"type": "tag", "values": WCAG_TAGS}, "resultTypes": ["violations"]})
     finally:
         context.close()
     violations = results.response["violations"]

@@ -6,9 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
-
-from sitetools import (ARTIFACTS, SCREENSHOT_PAGES, expected_colab_url, is_notebook, require_site,
-                      toc_pages)
+from sitetools import ARTIFACTS, SCREENSHOT_PAGES, expected_colab_url, is_notebook, require_site, toc_pages
 
 PAGES = toc_pages()
 NOTEBOOK_PAGES = [p for p in PAGES if is_notebook(p)]
@@ -31,11 +29,12 @@ def test_page_is_built(page):
 @pytest.mark.parametrize("page", PAGES)
 def test_no_console_errors(visit, page):
     r = visit(page)
-    problems = ([f"console: {m}" for m in r.console_errors]
-                + [f"uncaught: {m}" for m in r.page_errors]
-                + [f"request failed: {m}" for m in r.failed_requests]
-                + [f"external request (site must load offline, MathJax excepted): {u}"
-                   for u in r.external_requests])
+    problems = (
+        [f"console: {m}" for m in r.console_errors]
+        + [f"uncaught: {m}" for m in r.page_errors]
+        + [f"request failed: {m}" for m in r.failed_requests]
+        + [f"external request (site must load offline, MathJax excepted): {u}" for u in r.external_requests]
+    )
     assert not problems, f"{page}:\n  " + "\n  ".join(problems)
 
 
@@ -70,8 +69,9 @@ def test_images_loaded(visit, page):
 def test_videos_play(visit, page):
     for v in visit(page).videos:
         assert v["error"] is None, f"{page}: video {v['src']} failed to load (MediaError {v['error']})"
-        assert v["duration"] and v["duration"] > 0 and v["duration"] != float("inf"), \
+        assert v["duration"] and v["duration"] > 0 and v["duration"] != float("inf"), (
             f"{page}: video {v['src']} has duration {v['duration']}"
+        )
         assert v["played"], f"{page}: video {v['src']} did not play ({v['playError']})"
         assert v["type"] in ("video/mp4", ""), f"{page}: video {v['src']} is {v['type']}, not MP4"
 
@@ -84,8 +84,11 @@ def test_launch_buttons(visit, page):
     colab = [link["href"] for link in links if link["href"].startswith(COLAB)]
     assert colab, f"{page}: no Colab launch button"
     assert set(colab) == {expected_colab_url(page)}, f"{page}: Colab links {colab}"
-    downloads = [link for link in links if link["href"].endswith(".ipynb")
-                 and "download" in (link["title"] + link["cls"]).lower()]
+    downloads = [
+        link
+        for link in links
+        if link["href"].endswith(".ipynb") and "download" in (link["title"] + link["cls"]).lower()
+    ]
     assert downloads, f"{page}: no .ipynb download button"
     site = require_site()
     for link in downloads:
@@ -119,10 +122,10 @@ def test_install_cell_hidden_on_pages():
         i = html.find("find_spec")
         assert i > 0, f"{page}: install cell missing"
         start = html.rfind('<div class="cell ', 0, i)
-        tag = html[start:html.find(">", start)]
+        tag = html[start : html.find(">", start)]
         assert "tag_hide-input" in tag or "tag_remove-input" in tag, f"{page}: install cell not hidden ({tag})"
         end = html.find('<div class="cell ', i)
-        assert "cell_output" not in html[i:end if end > 0 else None], f"{page}: install cell shows output"
+        assert "cell_output" not in html[i : end if end > 0 else None], f"{page}: install cell shows output"
 
 
 def test_screenshots_saved(visit):

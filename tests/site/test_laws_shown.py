@@ -67,9 +67,11 @@ def test_every_law_run_is_shown(notebook):
     assert laws, f"{notebook} runs no law from {CONTROLLERS}: the test's parser found nothing"
     blocks = shown_code_blocks(notebook)
     missing = []
-    for name, fn in laws.items():
+    for fn in laws.values():
         source = inspect.getsource(fn).strip()
         if not any(source in re.sub(r"\r\n", "\n", b) for b in blocks):
             missing.append(f"{fn.__module__}.{fn.__name__}")
-    assert not missing, (f"{notebook}: the page runs these laws but does not show their current code "
-                         f"(use labsupport.book.show_law): {missing}")
+    assert not missing, (
+        f"{notebook}: the page runs these laws but does not show their current code "
+        f"(use labsupport.book.show_law): {missing}"
+    )

@@ -11,8 +11,15 @@ from sitetools import SUMMARY, require_site
 
 #: (tag, attribute) pairs that point at another file or a place in one.
 REFERENCES = {
-    ("a", "href"), ("link", "href"), ("script", "src"), ("img", "src"), ("source", "src"),
-    ("video", "src"), ("video", "poster"), ("iframe", "src"), ("embed", "src"),
+    ("a", "href"),
+    ("link", "href"),
+    ("script", "src"),
+    ("img", "src"),
+    ("source", "src"),
+    ("video", "src"),
+    ("video", "poster"),
+    ("iframe", "src"),
+    ("embed", "src"),
 }
 EXTERNAL_SCHEMES = ("http:", "https:", "mailto:", "data:", "javascript:", "tel:")
 
@@ -85,8 +92,9 @@ def broken_links(site: Path) -> tuple[list[str], int]:
 def test_internal_links_resolve():
     site = require_site()
     problems, checked = broken_links(site)
-    SUMMARY.append(f"link checker: {checked} internal references on {len(site_pages(site))} pages, "
-                   f"{len(problems)} broken")
+    SUMMARY.append(
+        f"link checker: {checked} internal references on {len(site_pages(site))} pages, {len(problems)} broken"
+    )
     assert checked > 100, "the link checker found almost nothing to check"
     assert not problems, "broken internal links:\n  " + "\n  ".join(problems[:50])
 
@@ -95,8 +103,9 @@ def test_link_checker_catches_a_broken_link(tmp_path):
     """The checker itself: a page with one good and two bad references gets exactly two problems."""
     (tmp_path / "a.html").write_text('<p id="here">x</p><a href="b.html#there">b</a>', encoding="utf-8")
     (tmp_path / "b.html").write_text(
-        '<h1 id="there">b</h1><a href="a.html#here">ok</a><a href="a.html#gone">bad</a>'
-        '<img src="missing.png">', encoding="utf-8")
+        '<h1 id="there">b</h1><a href="a.html#here">ok</a><a href="a.html#gone">bad</a><img src="missing.png">',
+        encoding="utf-8",
+    )
     problems, checked = broken_links(tmp_path)
     assert checked == 4
     assert len(problems) == 2

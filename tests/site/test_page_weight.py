@@ -25,7 +25,6 @@ from pathlib import Path
 from urllib.parse import unquote, urljoin, urlparse
 
 import pytest
-
 from sitetools import SUMMARY, dump_json, require_site, toc_pages
 from test_links import parse
 
@@ -33,8 +32,22 @@ MB = 1_000_000
 PAGE_LIMIT = 3 * MB
 SITE_LIMIT = 30 * MB
 #: Suffixes a web server compresses on the way (media formats are compressed already).
-COMPRESSIBLE = {".html", ".css", ".js", ".mjs", ".svg", ".json", ".txt", ".xml", ".map",
-                ".ttf", ".otf", ".eot", ".ipynb", ".inv"}
+COMPRESSIBLE = {
+    ".html",
+    ".css",
+    ".js",
+    ".mjs",
+    ".svg",
+    ".json",
+    ".txt",
+    ".xml",
+    ".map",
+    ".ttf",
+    ".otf",
+    ".eot",
+    ".ipynb",
+    ".inv",
+}
 #: Asset references that a browser fetches when it shows the page.
 LOADED = {"img", "script", "source", "video"}
 CONTENT = {"img", "source", "video"}
@@ -42,7 +55,7 @@ PAGES = toc_pages()
 WEIGHTS: dict[str, dict] = {}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def transfer_size(path: Path) -> int:
     """Bytes on the wire: gzip-compressed for text resources, as stored for media."""
     data = path.read_bytes()
@@ -79,12 +92,15 @@ def page_weight(site: Path, page: str, loaded_urls) -> dict:
                 files[rel] = site / rel
     resources = [html] + [p for p in files.values() if p.is_file()]
     content = [html] + list(referenced_files(site, html, CONTENT).values())
-    largest = sorted(((str(k), p.stat().st_size) for k, p in files.items() if p.is_file()),
-                     key=lambda kv: -kv[1])[:3]
-    return {"raw": sum(p.stat().st_size for p in resources),
-            "transfer": sum(transfer_size(p) for p in resources),
-            "content": sum(p.stat().st_size for p in content),
-            "html": html.stat().st_size, "files": len(resources), "largest": largest}
+    largest = sorted(((str(k), p.stat().st_size) for k, p in files.items() if p.is_file()), key=lambda kv: -kv[1])[:3]
+    return {
+        "raw": sum(p.stat().st_size for p in resources),
+        "transfer": sum(transfer_size(p) for p in resources),
+        "content": sum(p.stat().st_size for p in content),
+        "html": html.stat().st_size,
+        "files": len(resources),
+        "largest": largest,
+    }
 
 
 @pytest.mark.parametrize("page", PAGES)
@@ -95,19 +111,23 @@ def test_page_weight(visit, page):
     if len(WEIGHTS) == len(PAGES):
         _summarise()
     assert w["transfer"] <= PAGE_LIMIT, (
-        f"{page}: a first visit downloads {w['transfer'] / MB:.2f} MB (limit 3 MB); "
-        f"largest files {w['largest']}")
+        f"{page}: a first visit downloads {w['transfer'] / MB:.2f} MB (limit 3 MB); largest files {w['largest']}"
+    )
     assert w["content"] <= PAGE_LIMIT, (
-        f"{page}: its own HTML, figures and videos weigh {w['content'] / MB:.2f} MB (limit 3 MB)")
+        f"{page}: its own HTML, figures and videos weigh {w['content'] / MB:.2f} MB (limit 3 MB)"
+    )
 
 
 def _summarise():
-    SUMMARY.append("page weight, first visit (transfer = downloaded bytes, text compressed; "
-                   "raw = uncompressed; content = the page's HTML, figures and videos):")
+    SUMMARY.append(
+        "page weight, first visit (transfer = downloaded bytes, text compressed; "
+        "raw = uncompressed; content = the page's HTML, figures and videos):"
+    )
     SUMMARY.append(f"  {'page':38s} {'transfer MB':>11s} {'raw MB':>7s} {'content MB':>10s} {'files':>5s}")
     for page, w in WEIGHTS.items():
-        SUMMARY.append(f"  {page:38s} {w['transfer'] / MB:11.3f} {w['raw'] / MB:7.3f} "
-                       f"{w['content'] / MB:10.3f} {w['files']:5d}")
+        SUMMARY.append(
+            f"  {page:38s} {w['transfer'] / MB:11.3f} {w['raw'] / MB:7.3f} {w['content'] / MB:10.3f} {w['files']:5d}"
+        )
     dump_json("page_weight.json", WEIGHTS)
 
 
@@ -123,8 +143,10 @@ def test_site_size():
         if p.is_file():
             top = p.relative_to(site).parts[0] if len(p.relative_to(site).parts) > 1 else "(top)"
             by_dir[top] = by_dir.get(top, 0) + p.stat().st_size
-    SUMMARY.append(f"whole site: {total / MB:.2f} MB (limit 30 MB); "
-                   + ", ".join(f"{k} {v / MB:.2f}" for k, v in sorted(by_dir.items(), key=lambda kv: -kv[1])))
+    SUMMARY.append(
+        f"whole site: {total / MB:.2f} MB (limit 30 MB); "
+        + ", ".join(f"{k} {v / MB:.2f}" for k, v in sorted(by_dir.items(), key=lambda kv: -kv[1]))
+    )
     assert total < SITE_LIMIT, f"the site weighs {total / MB:.1f} MB (limit 30 MB)"
 
 
@@ -157,8 +179,10 @@ def test_png_reader():
 
     def chunk(kind, data):
         return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
     raw = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 37, 11, 8, 2, 0, 0, 0))
     import tempfile
+
     with tempfile.TemporaryDirectory() as d:
         p = Path(d) / "x.png"
         p.write_bytes(raw)
@@ -170,9 +194,11 @@ def test_video_is_mp4_not_frames(page):
     """Animations are MP4 video, not matplotlib's frame-by-frame JavaScript (to_jshtml)."""
     site = require_site()
     html = (site / f"{page}.html").read_text(encoding="utf-8", errors="replace")
-    assert '<div class="animation">' not in html and "anim_step_forward" not in html.lower(), \
+    assert '<div class="animation">' not in html and "anim_step_forward" not in html.lower(), (
         f"{page} embeds a frame-by-frame animation; encode MP4 instead"
+    )
     for m in re.finditer(r'<(?:video|source)\b[^>]*\bsrc="([^"]{0,40})', html):
         src = m.group(1)
-        assert src.startswith("data:video/mp4") or src.split("?")[0].endswith(".mp4"), \
+        assert src.startswith("data:video/mp4") or src.split("?")[0].endswith(".mp4"), (
             f"{page}: video source {src!r} is not MP4"
+        )
