@@ -137,6 +137,12 @@ def _submissions(folder: Path, names) -> Path:
     return folder
 
 
+def _batch_cli(problem: str, subs: Path, out: Path, *options: str, env=None) -> subprocess.CompletedProcess:
+    """The README's batch command, run from the repository root."""
+    cmd = [sys.executable, "-m", "labsupport.instructor.batch", "--problem", problem, str(subs), "--out", str(out)]
+    return subprocess.run([*cmd, *options], cwd=ROOT, env=env, capture_output=True, text=True)
+
+
 def _grades(out: Path) -> dict:
     with open(out / "grades.csv", newline="", encoding="utf-8") as f:
         return {r["file"]: r for r in csv.DictReader(f)}
@@ -296,22 +302,7 @@ def test_wall_clock_backstop_asks_for_a_regrade_instead_of_a_zero(tmp_path):
 def test_refuses_without_bubblewrap(tmp_path):
     subs = _submissions(tmp_path / "subs", ["master.ipynb"])
     env = {**os.environ, "PATH": str(tmp_path)}  # no bwrap on the path
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "labsupport.instructor.batch",
-            "--problem",
-            "problem1",
-            str(subs),
-            "--out",
-            str(tmp_path / "out"),
-        ],
-        cwd=ROOT,
-        env=env,
-        capture_output=True,
-        text=True,
-    )
+    proc = _batch_cli("problem1", subs, tmp_path / "out", env=env)
     assert proc.returncode == 2
     assert "bubblewrap (bwrap) is not installed" in proc.stderr and "--unsafe-no-sandbox" in proc.stderr
     assert not (tmp_path / "out").exists()
@@ -319,24 +310,7 @@ def test_refuses_without_bubblewrap(tmp_path):
 
 def test_unsafe_opt_out_says_so_in_every_row(tmp_path):
     subs = _submissions(tmp_path / "subs", ["master.ipynb", "invalid_json.ipynb"])
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "labsupport.instructor.batch",
-            "--problem",
-            "problem1",
-            str(subs),
-            "--out",
-            str(tmp_path / "out"),
-            "--unsafe-no-sandbox",
-            "--seed",
-            str(SEED),
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-    )
+    proc = _batch_cli("problem1", subs, tmp_path / "out", "--unsafe-no-sandbox", "--seed", str(SEED))
     assert proc.returncode == 0, proc.stderr
     rows = _grades(tmp_path / "out")
     assert rows["master.ipynb"]["total"] == "10"
@@ -373,21 +347,8 @@ def test_masters_get_full_marks_on_problem2(tmp_path):
     subs.mkdir()
     shutil.copy(ROOT / "notebooks" / "masters" / "problem2_tracking.ipynb", subs / "master.ipynb")
     shutil.copy(ROOT / "notebooks" / "problem2_tracking.ipynb", subs / "student.ipynb")
-    subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "labsupport.instructor.batch",
-            "--problem",
-            "problem2",
-            str(subs),
-            "--out",
-            str(tmp_path / "out"),
-        ],
-        cwd=ROOT,
-        check=True,
-        capture_output=True,
-    )
+    proc = _batch_cli("problem2", subs, tmp_path / "out")
+    assert proc.returncode == 0, proc.stderr
     rows = _grades(tmp_path / "out")
     assert rows["master.ipynb"]["total"] == "10", rows["master.ipynb"]["reason"]
     assert rows["student.ipynb"]["total"] == "0"
