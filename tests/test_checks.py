@@ -331,10 +331,18 @@ def test_ik_ct_mistakes_are_named(master2):
     def elbow_down(model, data, *ref):
         return ik_ct_law(model, data, *ref, ik=lambda x, elbow_up=True: ik(x, False))
 
+    def a_turn_away(model, data, *ref):  # the right pose, joint 3 a full turn from the nearest angle
+        return ik_ct_law(model, data, *ref, ik=lambda x, elbow_up=True: ik(x, True) + np.array([0, 0, 2 * np.pi]))
+
+    def down_and_a_turn_away(model, data, *ref):
+        return ik_ct_law(model, data, *ref, ik=lambda x, elbow_up=True: ik(x, False) - np.array([2 * np.pi, 0, 0]))
+
     for fn, score, words in (
         (no_jdot, 0.5, "J̇(q_d, q̇_d) q̇_d term"),
         (at_current_state, 0.75, "at the arm's state"),
         (elbow_down, 0.0, "elbow-down branch"),
+        (a_turn_away, 0.25, "elbow-up pose with an angle a full turn (2π) away"),
+        (down_and_a_turn_away, 0.0, "elbow-down pose with an angle a full turn (2π) away"),
     ):
         result = grade("p2_ikct", ct_ik_joint_torque=fn)
         assert result.score == score and words in result.message, result

@@ -20,6 +20,8 @@ configuration, so it starts on the circle with no IK either.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from labsupport.grading.common import (
@@ -193,6 +195,20 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
     qd_now = np.linalg.solve(T.J, xd_d)
     q_down = mirror_elbow(q_d)
     qd_down, qdd_down = _joint_reference_terms(model, q_down, xd_d, xdd_d)
+    # The same pose with some angle a full turn away: the IK is right as kinematics, but joint-space
+    # control then drives that joint a full turn (q_d - q is off by 2π).
+    turns = [np.array(k) for k in itertools.product((-1, 0, 1), repeat=3) if any(k)]
+    unwrapped = {
+        f"unwrapped_{branch}_{i}": Mistake(
+            law(qdd, qd=qd, qq=qq + 2 * np.pi * k),
+            f"your IK returns the {branch} pose with an angle a full turn (2π) away from the one nearest the "
+            "arm, so q_d − q is off by 2π and the joint CT drives that joint round a full turn: wrap the IK's "
+            "angles into (−π, π]" + (" and take the elbow-up branch." if branch == "elbow-down" else "."),
+            0.25 if branch == "elbow-up" else 0.0,
+        )
+        for branch, qq, qd, qdd in (("elbow-up", q_d, qd_d, qdd_d), ("elbow-down", q_down, qd_down, qdd_down))
+        for i, k in enumerate(turns)
+    }
     return {
         "no_jdot": Mistake(
             law(np.linalg.solve(Td.J, xdd_d)),
@@ -220,6 +236,7 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
             "the IK returns the elbow-down branch, but the arm runs elbow up (elbow_up=True).",
             0.0,
         ),
+        **unwrapped,
     }
 
 
