@@ -103,15 +103,6 @@ class Log:
     err: np.ndarray
 
 
-def check_state(t: float, data: mujoco.MjData) -> None:
-    """Raise :class:`SimulationDiverged` if the state is not finite or MuJoCo flagged instability."""
-    if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
-        raise SimulationDiverged(t, data.qpos, data.qvel, "non-finite state")
-    for w in _FATAL_WARNINGS:
-        if data.warning[w].number > 0:
-            raise SimulationDiverged(t, data.qpos, data.qvel, f"MuJoCo warning {mujoco.mjtWarning(w).name}")
-
-
 def reset(
     model: mujoco.MjModel,
     data: mujoco.MjData,
