@@ -21,11 +21,14 @@ Modules, one idea each:
 ========================  ===============================================================
 
 Importing the package chooses an OpenGL backend for MuJoCo (``MUJOCO_GL``) before MuJoCo
-itself is imported, so import ``labsupport`` first in a notebook.
+itself is imported, so import ``labsupport`` first in a notebook. It then refuses, with what to
+do, a MuJoCo older than the package admits (:data:`labsupport.dynamics.OLDEST_MUJOCO`).
 """
 
 from labsupport import gl as _gl
 
 _gl.select_backend()
+
+from labsupport import dynamics as _dynamics  # noqa: E402, F401  (after the backend: refuses a too old MuJoCo)
 
 __version__ = "1.0.0"

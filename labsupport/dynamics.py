@@ -15,10 +15,31 @@ that knows; keep it that way.
 
 from __future__ import annotations
 
+import re
 import threading
 
 import mujoco
 import numpy as np
+
+#: The oldest MuJoCo the package admits (``pyproject.toml`` says the same; a test checks): on
+#: 3.3.0 and older ``mj_jacDot`` gives a :math:`\dot J\dot q` that disagrees with finite
+#: differences, and before 3.3.6 the UR5e scene does not compile. The unit tests run on it
+#: (``bash .ci/test-oldest``).
+OLDEST_MUJOCO = (3, 3, 6)
+
+
+def _version(text: str) -> tuple[int, ...]:
+    """``"3.3.6"`` → ``(3, 3, 6)``; a suffix such as ``.dev0`` or ``rc1`` is ignored."""
+    return tuple(int(re.match(r"\d*", part).group() or 0) for part in text.split(".")[:3])
+
+
+if _version(mujoco.__version__) < OLDEST_MUJOCO:
+    _oldest = ".".join(map(str, OLDEST_MUJOCO))
+    raise ImportError(
+        f"labsupport needs MuJoCo {_oldest} or newer, but this Python has MuJoCo {mujoco.__version__}, "
+        "which gives wrong numbers here (J̇q̇) and cannot load the UR5e. Run "
+        f"`pip install --upgrade 'mujoco>={_oldest},<5'`, then restart the runtime (Colab: Runtime → Restart session)."
+    )
 
 #: True on MuJoCo >= 4, where ``mj_fullM(model, data, dst)`` replaced ``mj_fullM(model, dst, qM)``.
 FULLM_TAKES_DATA = not hasattr(mujoco.MjData, "qM")

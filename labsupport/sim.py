@@ -18,9 +18,12 @@ What the controller sees depends on how the step is taken:
   step sees zeroed derived data), ``mj_step`` only, and steps while the accumulated time is
   below the duration.
 
-Divergence (a non-finite state, or one of MuJoCo's own instability warnings, after which
-MuJoCo resets the state) stops the run with :class:`SimulationDiverged`, which names the
-time and the last good state.
+Divergence stops the run with :class:`SimulationDiverged`, which names the time and the last
+good state: one of MuJoCo's own instability warnings (after which MuJoCo resets the state), a
+non-finite state, or a joint turning faster than :data:`RUNAWAY_SPEED`. The last one matters:
+a numerically unstable run (a damping too stiff for the time step) first swings chaotically at
+hundreds of rad/s, and whether it then overflows into MuJoCo's warnings depends on rounding,
+so it differs between MuJoCo versions; the speed bound catches it at the same step on all.
 """
 
 from __future__ import annotations
@@ -53,6 +56,10 @@ _LOGGED_STATE = int(
     | mujoco.mjtState.mjSTATE_QVEL
     | mujoco.mjtState.mjSTATE_CTRL
 )
+#: Joint speed [rad/s] above which a run counts as diverged: about 950 rpm, far beyond any
+#: motion of the lab's arms (a few rad/s), and reached within a step or two of the onset of
+#: a numerical instability.
+RUNAWAY_SPEED = 100.0
 _WARNING_MEANING = {
     _W_QPOS: "positions not finite or huge",
     _W_QVEL: "velocities not finite or huge",
@@ -264,7 +271,7 @@ def simulate(
         t = t_ctrl = state[:, 0].copy()
     q, qdot, ctrl_log = q.copy(), qdot.copy(), ctrl_log.copy()
     tau_log = ctrl_log.copy() if actuation is None else tau_log
-    _check_finite(t, q, qdot)
+    _check_runaway(t, q, qdot)
     if log_after_step and with_site:
         ee, ee_rot = site_poses(model, q, site_id)
     if reference is not None:
@@ -308,12 +315,21 @@ def _raise_warning(k, state, q, qdot, t_start, q_start, qdot_start, tau, warn, l
     raise SimulationDiverged(float(tk), qk, qdk, reason)
 
 
-def _check_finite(t, q, qdot):
-    """Raise :class:`SimulationDiverged` at the first logged state that is not finite."""
-    bad = ~(np.isfinite(q).all(axis=1) & np.isfinite(qdot).all(axis=1))
+def _check_runaway(t, q, qdot):
+    """Raise :class:`SimulationDiverged` at the first logged state that is not finite or whose
+    fastest joint exceeds :data:`RUNAWAY_SPEED`."""
+    finite = np.isfinite(q).all(axis=1) & np.isfinite(qdot).all(axis=1)
+    with np.errstate(invalid="ignore"):
+        bad = ~finite | (np.abs(qdot) > RUNAWAY_SPEED).any(axis=1)
     if bad.any():
         k = int(np.argmax(bad))
-        raise SimulationDiverged(float(t[k]), q[k], qdot[k], "non-finite state")
+        reason = (
+            "non-finite state"
+            if not finite[k]
+            else f"a joint turns at {np.abs(qdot[k]).max():.4g} rad/s, beyond {RUNAWAY_SPEED:g} rad/s: the run is "
+            "running away"
+        )
+        raise SimulationDiverged(float(t[k]), q[k], qdot[k], reason)
 
 
 def _evaluate(reference, t) -> np.ndarray:

@@ -1,5 +1,10 @@
 """labsupport.dynamics against independent computations (MuJoCo's own products, finite differences)."""
 
+import re
+import subprocess
+import sys
+from pathlib import Path
+
 import mujoco
 import numpy as np
 import pytest
@@ -192,3 +197,22 @@ def test_jacobian_solve_names_the_shapes_it_needs():
         dynamics.jacobian_solve(np.ones((3, 2)), np.ones(3))
     with pytest.raises(ValueError, match=r"rhs of shape \(3,\)"):
         dynamics.jacobian_solve(np.eye(2), np.ones(3))
+
+
+def test_the_oldest_mujoco_is_the_one_pyproject_admits():
+    """``pyproject.toml``'s lower bound on MuJoCo is ``dynamics.OLDEST_MUJOCO`` (the version
+    `.ci/test-oldest` runs the unit tests on)."""
+    text = (Path(__file__).resolve().parents[1] / "pyproject.toml").read_text(encoding="utf-8")
+    bound = re.search(r'"mujoco>=([0-9.]+),<(\d+)"', text)
+    assert bound, "pyproject.toml must admit MuJoCo as 'mujoco>=X.Y.Z,<N'"
+    assert tuple(int(p) for p in bound.group(1).split(".")) == dynamics.OLDEST_MUJOCO
+    assert dynamics._version(mujoco.__version__) >= dynamics.OLDEST_MUJOCO
+
+
+def test_a_too_old_mujoco_is_refused_with_what_to_do():
+    code = "import mujoco; mujoco.__version__ = '3.2.7'; import labsupport"
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
+    assert run.returncode != 0
+    assert "ImportError: labsupport needs MuJoCo 3.3.6 or newer" in run.stderr
+    assert "pip install --upgrade 'mujoco>=3.3.6,<5'" in run.stderr and "restart" in run.stderr
+    assert dynamics._version("3.10.0rc1") == (3, 10, 0) > dynamics._version("3.3.6")

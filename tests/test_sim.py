@@ -83,6 +83,20 @@ def test_divergence_is_detected_and_names_time_and_state(arm):
     assert "q = " in str(exc) and "qdot = " in str(exc)
 
 
+def test_a_runaway_joint_speed_stops_the_run_where_it_crosses_the_bound(arm):
+    """A run that spins up past RUNAWAY_SPEED without any MuJoCo warning (a constant torque on
+    the gravity-free 2R arm) stops at the first logged state beyond the bound, and the same run
+    cut just before it is untouched."""
+    model, data = arm
+    push = constant([4.0, 0.0])
+    with pytest.raises(sim.SimulationDiverged, match=r"rad/s, beyond 100 rad/s: the run is running away") as err:
+        sim.simulate(model, data, push, 30.0, q0=[0.0, 0.0])
+    exc = err.value
+    assert np.abs(exc.qvel).max() > sim.RUNAWAY_SPEED
+    log = sim.simulate(model, data, push, exc.t - 1e-9, q0=[0.0, 0.0])
+    assert np.abs(log.qdot).max() <= sim.RUNAWAY_SPEED and log.t[-1] < exc.t
+
+
 def test_non_finite_torque_is_reported(arm):
     model, data = arm
     with pytest.raises(sim.SimulationDiverged, match="controller returned tau"):

@@ -1,0 +1,19 @@
+"""Print pyproject.toml's dependencies pinned to the oldest versions it admits, as pip constraints.
+
+``numpy>=1.24`` becomes ``numpy==1.24``; an exact pin stays; an extra's dependency that applies
+only to other Pythons (an environment marker) keeps its marker. Used by ``.ci/test-oldest``.
+"""
+
+import re
+import sys
+import tomllib
+from pathlib import Path
+
+project = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+requirements = project["dependencies"] + [r for extra in project["optional-dependencies"].values() for r in extra]
+for requirement in requirements:
+    spec, _, marker = requirement.partition(";")
+    found = re.fullmatch(r"\s*([A-Za-z0-9_.-]+)\s*(?:>=|==)\s*([0-9][0-9A-Za-z.]*)\s*(?:,.*)?", spec)
+    if not found:
+        sys.exit(f"oldest-pins: cannot read a lower bound from {requirement!r}; write it as 'name>=X' or 'name==X'")
+    print(f"{found[1]}=={found[2]}" + (f"; {marker.strip()}" if marker else ""))
