@@ -6,8 +6,12 @@ only to other Pythons (an environment marker) keeps its marker. Used by ``.ci/te
 
 import re
 import sys
-import tomllib
 from pathlib import Path
+
+try:
+    import tomllib
+except ImportError:  # Python 3.10: the instructor extra installs tomli
+    import tomli as tomllib
 
 project = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text(encoding="utf-8"))["project"]
 requirements = project["dependencies"] + [r for extra in project["optional-dependencies"].values() for r in extra]
