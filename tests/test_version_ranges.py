@@ -1,0 +1,55 @@
+"""The version ranges the course admits, as the CI scripts read them.
+
+``.ci/oldest-pins.py`` turns pyproject.toml's lower bounds into the exact pins of `.venv-oldest`
+(``.ci/test-oldest``); ``.ci/newest-requirements.py`` lifts requirements.txt's pins for the weekly
+workflow. Both are checked against the files they read.
+"""
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import tomllib
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def run(script: str) -> list[str]:
+    out = subprocess.run([sys.executable, str(ROOT / ".ci" / script)], capture_output=True, text=True, check=True)
+    return out.stdout.splitlines()
+
+
+def test_oldest_pins_are_pyprojects_lower_bounds():
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    declared = project["dependencies"] + [r for extra in project["optional-dependencies"].values() for r in extra]
+    pins = run("oldest-pins.py")
+    assert len(pins) == len(declared)
+    for requirement, pin in zip(declared, pins, strict=True):
+        name, bound = re.match(r"([A-Za-z0-9_.-]+)\s*(?:>=|==)\s*([0-9.]+)", requirement).groups()
+        assert pin.split(";")[0] == f"{name}=={bound}", (requirement, pin)
+    assert "mujoco==3.3.6" in pins
+
+
+def test_newest_requirements_lift_every_pin_but_the_caps():
+    pinned = [
+        line.split("==")[0]
+        for line in (ROOT / "requirements.txt").read_text(encoding="utf-8").splitlines()
+        if line.strip() and not line.startswith("#")
+    ]
+    lifted = [line for line in run("newest-requirements.py") if line.strip() and not line.startswith("#")]
+    assert [re.match(r"[A-Za-z0-9_.-]+", line).group() for line in lifted] == pinned
+    assert "jupyter-book<2" in lifted  # the book stays Jupyter Book v1
+    assert [line for line in lifted if "==" in line] == [line for line in lifted if line.startswith("ruff==")]
+    assert "mujoco" in lifted and "numpy" in lifted  # pyproject's ranges decide (mujoco<5)
+
+
+def test_weekly_workflow_runs_the_test_command_on_newest_versions_and_checks_links():
+    workflow = yaml.safe_load((ROOT / ".github" / "workflows" / "weekly.yml").read_text(encoding="utf-8"))
+    triggers = workflow[True]  # YAML 1.1 reads the key `on` as True
+    assert triggers["schedule"][0]["cron"].split()[-1] == "1"  # weekly, on Mondays
+    steps = {job: " ".join(str(s.get("run", "")) for s in spec["steps"]) for job, spec in workflow["jobs"].items()}
+    assert "newest-requirements.py" in steps["newest"] and "bash .ci/test" in steps["newest"]
+    assert "--builder linkcheck" in steps["links"]
+    assert "gh issue create" in steps["report"] and workflow["jobs"]["report"]["if"].startswith("failure()")
