@@ -5,15 +5,27 @@ executed outputs, so page, code and results cannot drift apart.
   ``{glue:text}`name:.3f```. Without MyST-NB (Colab) it does nothing.
 * :func:`show_law` displays the source of a control law of :mod:`labsupport` as highlighted
   code, right under the equation it implements.
+* :func:`show_figure` shows a figure with the text alternative the notebook writes for it from
+  the values it plots, so picture and words cannot drift apart.
 """
 
 from __future__ import annotations
 
+import base64
 import inspect
+import io
+import re
 from collections.abc import Callable
+from html import escape
 from typing import Any
 
+import numpy as np
 from IPython.display import Markdown, display
+
+#: The fewest words a figure's text alternative may have.
+MIN_ALT_WORDS = 5
+#: A line at least this wide [pt] (a reference drawn as a band) counts as a style of its own.
+WIDE_LINE = 3.0
 
 
 def glue(name: str, value: Any, display: bool = False) -> None:
@@ -48,3 +60,63 @@ def show_law(fn: Callable) -> None:
     while fence in source:
         fence += "`"
     display(Markdown(f"{fence}python\n{source}{fence}"))
+
+
+def show_figure(figure, alt: str) -> None:
+    """Show ``figure`` (a Matplotlib figure, or an RGB image array such as a rendered frame) with
+    ``alt``, its text alternative (WCAG 2.1, success criterion 1.1.1).
+
+    Write ``alt`` in the notebook from the values the figure plots (an f-string), saying what the
+    axes are, what each curve does and its key numbers. The output is one ``<img>`` holding the
+    PNG and ``alt``, so the built page, Jupyter and Colab all carry it (with the PNG itself and
+    ``alt`` as plain text for front ends without HTML). A Matplotlib figure is closed once shown,
+    so the inline backend does not show it again.
+
+    Raises:
+        ValueError: ``alt`` is shorter than :data:`MIN_ALT_WORDS` words or is a file name; or two
+            labelled curves of one panel differ by colour alone (success criterion 1.4.1): give
+            them different line styles or markers (:data:`labsupport.plots.CURVE_CYCLE` does).
+    """
+    text = " ".join(str(alt).split())
+    if len(re.findall(r"\w+", text)) < MIN_ALT_WORDS or re.search(r"\.(png|jpe?g|svg)$", text, re.IGNORECASE):
+        raise ValueError(
+            f"a figure needs a text alternative of at least {MIN_ALT_WORDS} words that says what it shows, got {alt!r}"
+        )
+    if isinstance(figure, np.ndarray):
+        import mediapy
+
+        png = mediapy.compress_image(figure)
+    else:
+        import matplotlib.pyplot as plt
+
+        _refuse_colour_only_curves(figure)
+        buffer = io.BytesIO()
+        figure.savefig(buffer, format="png", bbox_inches="tight")  # as the inline backend draws it
+        plt.close(figure)
+        png = buffer.getvalue()
+    data = base64.b64encode(png).decode("ascii")
+    width = int.from_bytes(png[16:20], "big")  # the PNG header's width, in pixels
+    html = (
+        f'<img src="data:image/png;base64,{data}" alt="{escape(text)}" width="{width}" '
+        'style="max-width: 100%; height: auto">'
+    )
+    display({"text/html": html, "image/png": data, "text/plain": text}, raw=True)
+
+
+def _refuse_colour_only_curves(figure) -> None:
+    """``ValueError`` if two labelled curves of one panel share line style, marker and width class."""
+    for ax in figure.axes:
+        seen: dict[tuple[str, str], str] = {}
+        for line in ax.get_lines():
+            label = str(line.get_label())
+            if label.startswith("_"):
+                continue  # unlabelled: a guide line or markers that repeat a labelled curve
+            marker = str(line.get_marker())
+            wide = line.get_linewidth() >= WIDE_LINE  # a wide band is a style of its own
+            key = (str(line.get_linestyle()), "" if marker in ("None", "", " ") else marker, wide)
+            if key in seen and seen[key] != label:
+                raise ValueError(
+                    f"in the panel {ax.get_title() or ax.get_ylabel()!r}, the curves {seen[key]!r} and {label!r} "
+                    "differ by colour alone: give them different line styles or markers"
+                )
+            seen[key] = label

@@ -12,9 +12,30 @@ import itertools
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+from cycler import cycler
+from matplotlib import rcParamsDefault
 from matplotlib.figure import Figure
 
 from labsupport.metrics import cumulative_effort
+
+#: Successive curves of a panel differ in line style or marker as well as in colour (WCAG 2.1,
+#: success criterion 1.4.1: colour is never the only cue), six distinct curves per panel. The
+#: figure functions below give each run its line style themselves; this cycle is for a
+#: notebook's own plots (:func:`course_style`).
+CURVE_CYCLE = (
+    cycler(color=rcParamsDefault["axes.prop_cycle"].by_key()["color"][:6])  # Matplotlib's own first six
+    + cycler(linestyle=["-", "--", "-.", ":", "-", "--"])
+    + cycler(marker=["", "", "", "", "o", "s"])
+    + cycler(markevery=[None, None, None, None, 0.1, 0.1])
+)
+
+
+def course_style(rc: Mapping | None = None) -> None:
+    """Set Matplotlib's defaults for the course's figures: :data:`CURVE_CYCLE`, then ``rc``
+    (more ``rcParams``, e.g. ``{"figure.dpi": 90}``)."""
+    import matplotlib.pyplot as plt
+
+    plt.rcParams.update({"axes.prop_cycle": CURVE_CYCLE, **(rc or {})})
 
 
 def _figure(figsize, nrows=1, ncols=1, **kwargs):
@@ -35,6 +56,10 @@ SINGLE_JOINT_QUANTITIES = {
     "error": (r"$\theta - \theta_d$ [deg]", lambda log, ref: np.degrees(log.q[:, 0] - ref(log.t).pos)),
 }
 _LINE_STYLES = ("-", "--", "-.", ":")
+#: Line width of a desired curve: a wide grey band under the runs, told apart by its width.
+REFERENCE_WIDTH = 5.0
+#: Markers that tell runs apart where line styles already tell joints apart.
+_RUN_MARKERS = ("", "o", "s", "^")
 
 
 def single_joint_panel(
@@ -52,8 +77,8 @@ def single_joint_panel(
 
     Args:
         runs: label -> ``sim.Log`` of a one-joint arm; runs after the first are dashed, dash-dotted...
-        reference: ``reference(t) -> Reference`` (radians); drawn as "desired" on an angle panel
-            and subtracted on an error panel.
+        reference: ``reference(t) -> Reference`` (radians); drawn as "desired" (a wide grey band)
+            on an angle panel and subtracted on an error panel.
         level: ``(label, value)``, a dotted horizontal line, in the panel's unit before the
             conversion to degrees (radians for an angle, rad/s for a speed).
         limit: the actuator limit, drawn as red dotted lines at :math:`\pm` ``limit`` on a torque panel.
@@ -65,7 +90,8 @@ def single_joint_panel(
     ylabel, read = SINGLE_JOINT_QUANTITIES[quantity]
     first = next(iter(runs.values()))
     if reference is not None and quantity == "angle":
-        ax.plot(first.t, np.degrees(reference(first.t).pos), "k--", lw=1.2, label="desired")
+        desired = np.degrees(reference(first.t).pos)
+        ax.plot(first.t, desired, color="0.6", lw=REFERENCE_WIDTH, alpha=0.6, label="desired")
     for (label, log), style in zip(runs.items(), itertools.cycle(_LINE_STYLES)):
         ax.plot(log.t, read(log, reference), style, label=label)
     if level is not None:
@@ -124,8 +150,8 @@ def closed_form_figure(panels: Mapping[str, Mapping[str, tuple]], ylabel: str):
     panel maps a label to ``(t, closed_form, simulated)``; the panels share the y axis."""
     fig, axes = _figure((10, 3.6), 1, len(panels), sharey=True)
     for ax, (title, curves) in zip(axes[0], panels.items(), strict=True):
-        for label, (t, closed_form, simulated) in curves.items():
-            (line,) = ax.plot(t, closed_form, label=label)
+        for (label, (t, closed_form, simulated)), style in zip(curves.items(), itertools.cycle(_LINE_STYLES)):
+            (line,) = ax.plot(t, closed_form, style, label=label)
             ax.plot(t, simulated, "o", ms=3, color=line.get_color())
         ax.set(title=title, xlabel="time [s]")
         ax.grid(True, alpha=0.4)
@@ -149,26 +175,26 @@ def reaching_figure(runs: Mapping[str, object], q_d, target, reach: tuple[float,
     target = np.asarray(target, dtype=float)
     for j in range(2):
         ax = axes[0, j]
-        for label, log in runs.items():
-            ax.plot(log.t, np.degrees(log.q[:, j] - q_d[j]), lw=1.4, label=label)
+        for (label, log), style in zip(runs.items(), itertools.cycle(_LINE_STYLES)):
+            ax.plot(log.t, np.degrees(log.q[:, j] - q_d[j]), style, lw=1.4, label=label)
         ax.axhline(0.0, color="k", lw=0.8, ls="--")
         ax.set(xlabel="time [s]", ylabel=f"$q_{j + 1} - q_{{d,{j + 1}}}$ [deg]", title=f"joint {j + 1} error")
         ax = axes[1, j]
-        for label, log in runs.items():
-            ax.plot(log.t, log.tau[:, j], lw=1.4, label=label)
+        for (label, log), style in zip(runs.items(), itertools.cycle(_LINE_STYLES)):
+            ax.plot(log.t, log.tau[:, j], style, lw=1.4, label=label)
         ax.set(xlabel="time [s]", ylabel=rf"$\tau_{j + 1}$ [N·m]", title=f"joint {j + 1} torque")
     ax = axes[0, 2]
     _workspace(ax, *reach)
     first = next(iter(runs.values()))
-    for label, log in runs.items():
-        ax.plot(log.ee[:, 0], log.ee[:, 1], lw=1.4, label=label)
+    for (label, log), style in zip(runs.items(), itertools.cycle(_LINE_STYLES)):
+        ax.plot(log.ee[:, 0], log.ee[:, 1], style, lw=1.4, label=label)
     ax.plot(*first.ee[0, :2], "go", ms=7, label="start")
     ax.plot(*target, "r*", ms=12, label="target")
     ax.set_aspect("equal")
     ax.set(xlabel="x [m]", ylabel="y [m]", title="end-effector path")
     ax = axes[1, 2]
-    for label, log in runs.items():
-        ax.semilogy(log.t, 1000 * np.linalg.norm(log.ee[:, :2] - target, axis=1), lw=1.4, label=label)
+    for (label, log), style in zip(runs.items(), itertools.cycle(_LINE_STYLES)):
+        ax.semilogy(log.t, 1000 * np.linalg.norm(log.ee[:, :2] - target, axis=1), style, lw=1.4, label=label)
     ax.set(xlabel="time [s]", ylabel="distance [mm]", title="distance to the target")
     for ax in axes.flat:
         ax.grid(True, alpha=0.4)
@@ -183,19 +209,28 @@ def circle_tracking_figure(runs: Mapping[str, object], desired_path):
     """
     fig, axes = _figure((12, 3.8), 1, 3)
     ax = axes[0, 0]
-    ax.plot(desired_path[:, 0], desired_path[:, 1], "k--", lw=1, label="desired")
-    for label, log in runs.items():
-        ax.plot(log.ee[:, 0], log.ee[:, 1], lw=1.2, alpha=0.8, label=label)
+    ax.plot(desired_path[:, 0], desired_path[:, 1], color="0.6", lw=REFERENCE_WIDTH, alpha=0.6, label="desired")
+    for (label, log), style in zip(runs.items(), itertools.cycle(_LINE_STYLES)):
+        ax.plot(log.ee[:, 0], log.ee[:, 1], style, lw=1.2, alpha=0.8, label=label)
     ax.set_aspect("equal")
     ax.set(xlabel="x [m]", ylabel="y [m]", title="end-effector path")
     ax = axes[0, 1]
-    for label, log in runs.items():
-        ax.plot(log.t, 1000 * np.linalg.norm(log.err, axis=1), lw=1.2, label=label)
+    for (label, log), style in zip(runs.items(), itertools.cycle(_LINE_STYLES)):
+        ax.plot(log.t, 1000 * np.linalg.norm(log.err, axis=1), style, lw=1.2, label=label)
     ax.set(xlabel="time [s]", ylabel=r"$|x_d - x|$ [mm]", title="Cartesian error")
     ax = axes[0, 2]
-    for i, (label, log) in enumerate(runs.items()):
+    for (i, (label, log)), marker in zip(enumerate(runs.items()), itertools.cycle(_RUN_MARKERS)):
         for j, style in enumerate(("-", "--")):
-            ax.plot(log.t, log.tau[:, j], style, color=f"C{i}", lw=1, label=rf"{label} $\tau_{j + 1}$")
+            ax.plot(
+                log.t,
+                log.tau[:, j],
+                style,
+                color=f"C{i}",
+                marker=marker,
+                markevery=0.1,
+                lw=1,
+                label=rf"{label} $\tau_{j + 1}$",
+            )
     ax.set(xlabel="time [s]", ylabel=r"$\tau$ [N·m]", title="joint torques")
     for ax in axes.flat:
         ax.grid(True, alpha=0.4)
