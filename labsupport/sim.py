@@ -298,7 +298,10 @@ def _as_torque(tau, nu: int) -> np.ndarray:
 
 
 def _raise_warning(k, state, q, qdot, t_start, q_start, qdot_start, tau, warn, log_after_step):
-    """MuJoCo flagged step ``k`` (and reset the state): report the state at the step's start."""
+    """MuJoCo flagged step ``k`` (and reset the state): report the state at the step's start,
+    or the first earlier state beyond :data:`RUNAWAY_SPEED` (so a run that ran away reports the
+    same time whether or not this MuJoCo's warnings fire as well)."""
+    _check_runaway(state[:k, 0], q[:k], qdot[:k])
     if log_after_step:
         tk, qk, qdk = (state[k - 1, 0], q[k - 1], qdot[k - 1]) if k else (t_start, q_start, qdot_start)
     else:

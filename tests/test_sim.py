@@ -71,15 +71,15 @@ def test_mujoco_data_after_an_rk4_step_belongs_to_the_new_state(arm):
 
 
 def test_divergence_is_detected_and_names_time_and_state(arm):
-    """Positive velocity feedback makes the arm run away; MuJoCo flags it (and resets the
-    state); the loop stops with the time and the last good state."""
+    """Positive velocity feedback makes the arm run away; the loop stops at the first state
+    beyond the runaway speed (before MuJoCo flags the blow-up and resets), with time and state."""
     model, data = arm
     gain = np.array([0.0, 50.0])
-    with pytest.raises(sim.SimulationDiverged, match=r"diverged at t = \d+\.\d+ s .*BADQ") as err:
+    with pytest.raises(sim.SimulationDiverged, match=r"diverged at t = \d+\.\d+ s .*running away") as err:
         sim.simulate(model, data, lambda m, d: gain * d.qvel + np.array([1.0, 0.0]), 5.0, q0=[0.1, 1.0])
     exc = err.value
     assert 0 < exc.t < 5.0
-    assert np.all(np.isfinite(exc.qpos)) and np.abs(exc.qvel).max() > 1e3  # the runaway is visible
+    assert np.all(np.isfinite(exc.qpos)) and np.abs(exc.qvel).max() > sim.RUNAWAY_SPEED  # the runaway is visible
     assert "q = " in str(exc) and "qdot = " in str(exc)
 
 
@@ -95,6 +95,16 @@ def test_a_runaway_joint_speed_stops_the_run_where_it_crosses_the_bound(arm):
     assert np.abs(exc.qvel).max() > sim.RUNAWAY_SPEED
     log = sim.simulate(model, data, push, exc.t - 1e-9, q0=[0.0, 0.0])
     assert np.abs(log.qdot).max() <= sim.RUNAWAY_SPEED and log.t[-1] < exc.t
+
+
+def test_mujocos_own_warning_is_reported_when_nothing_ran_away_before_it(arm):
+    """One huge torque: MuJoCo flags the accelerations of that very step (and resets), with no
+    earlier state beyond the runaway speed; the loop reports MuJoCo's warning and the step's start."""
+    model, data = arm
+    kick = np.array([5e9, 0.0])
+    with pytest.raises(sim.SimulationDiverged, match=r"t = 0\.0120 s \(MuJoCo warning mjWARN_BADQACC") as err:
+        sim.simulate(model, data, lambda m, d: kick if d.time > 0.011 else np.zeros(2), 0.1)
+    assert np.abs(err.value.qvel).max() < sim.RUNAWAY_SPEED
 
 
 def test_non_finite_torque_is_reported(arm):

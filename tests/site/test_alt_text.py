@@ -19,6 +19,7 @@ cell that draws a figure has one and that the Problems' student notebooks inheri
 
 from __future__ import annotations
 
+import ast
 import json
 import re
 
@@ -198,9 +199,10 @@ def test_the_tasks_show_their_figures():
 
 
 # --------------------------------------------------------------------------------------------
-# The notebooks' sources: every cell that draws a figure says what it shows
+# The notebooks' sources: every figure is shown with a text alternative computed from its values
 # --------------------------------------------------------------------------------------------
-_DRAWS_A_FIGURE = re.compile(r"plt\.subplots\(|_figure\(|plt\.show\(\)|display\(Image\(")
+_DRAWS_A_FIGURE = re.compile(r"plt\.subplots\(|_figure\(|renderer\.render\(\)")
+_SHOWN_WITHOUT_ALT = re.compile(r"plt\.show\(\)|display\(Image\(")
 
 
 def _notebooks() -> list:
@@ -212,29 +214,55 @@ def _cells(path) -> list[dict]:
     return json.loads(path.read_text(encoding="utf-8"))["cells"]
 
 
-def _alt(cell: dict) -> str:
-    return cell.get("metadata", {}).get("mystnb", {}).get("image", {}).get("alt", "")
+def _python(source: str) -> ast.Module:
+    """A code cell as Python (IPython's ``%`` and ``!`` lines left out)."""
+    return ast.parse("\n".join(line for line in source.splitlines() if not line.lstrip().startswith(("%", "!"))))
+
+
+def computed_alts(source: str) -> list[bool]:
+    """For each ``show_figure(figure, alt)`` call of a cell: is ``alt`` computed (an f-string with
+    a replacement field, or built from names), rather than a fixed text that can drift?"""
+    found = []
+    for node in ast.walk(_python(source)):
+        if isinstance(node, ast.Call) and getattr(node.func, "id", getattr(node.func, "attr", "")) == "show_figure":
+            alt = node.args[1] if len(node.args) > 1 else next((k.value for k in node.keywords if k.arg == "alt"), None)
+            found.append(alt is not None and any(isinstance(n, (ast.FormattedValue, ast.Name)) for n in ast.walk(alt)))
+    return found
+
+
+def test_computed_alts_are_told_from_fixed_ones():
+    assert computed_alts('show_figure(fig, f"Speed rises to {w:.1f} rad/s within five seconds.")') == [True]
+    assert computed_alts('show_figure(fig, "Speed rises to 10 rad/s within five seconds.")') == [False]
+    assert computed_alts('book.show_figure(fig, alt="The arm swings, " + text)') == [True]
+    assert computed_alts("fig, ax = plt.subplots()") == []
 
 
 @pytest.mark.parametrize("path", _notebooks(), ids=lambda p: p.relative_to(ROOT).as_posix())
-def test_every_figure_cell_carries_its_alt_text(path):
-    missing = []
+def test_every_figure_is_shown_with_an_alt_computed_from_its_values(path):
+    problems = []
     for k, cell in enumerate(_cells(path)):
         source = "".join(cell["source"])
-        if cell["cell_type"] == "code" and _DRAWS_A_FIGURE.search(source):
-            why = alt_problem(_alt(cell) or None, figure=True)
-            if why:
-                missing.append(f"cell {k} ({source.splitlines()[0][:50]!r}): {why}")
-    assert not missing, (
-        f"{path.name}: give each figure cell metadata "
-        '{"mystnb": {"image": {"alt": "<what the figure shows>"}}}: ' + "; ".join(missing)
-    )
+        if cell["cell_type"] != "code":
+            continue
+        where = f"cell {k} ({source.splitlines()[0][:50]!r})" if source else f"cell {k}"
+        if cell.get("metadata", {}).get("mystnb", {}).get("image", {}).get("alt"):
+            problems.append(f"{where}: a fixed alt in the cell metadata (compute it and pass it to show_figure)")
+        if _SHOWN_WITHOUT_ALT.search(source):
+            problems.append(f"{where}: shows a figure without its alt (use labsupport.book.show_figure)")
+        alts = computed_alts(source)
+        if _DRAWS_A_FIGURE.search(source) and not alts:
+            problems.append(f"{where}: draws a figure but never calls show_figure(figure, alt)")
+        if not all(alts):
+            problems.append(f"{where}: show_figure's alt is a fixed text; write it from the plotted values (f-string)")
+    assert not problems, f"{path.name}: " + "; ".join(problems)
 
 
 @pytest.mark.parametrize("name", ["problem1_reaching", "problem2_tracking"])
-def test_student_notebooks_inherit_the_masters_alt_texts(name):
-    master = {c["id"]: _alt(c) for c in _cells(ROOT / "notebooks" / "masters" / f"{name}.ipynb")}
-    student = {c["id"]: _alt(c) for c in _cells(ROOT / "notebooks" / f"{name}.ipynb")}
-    with_alt = {cell_id: alt for cell_id, alt in master.items() if alt}
-    assert with_alt, f"the master of {name} has no figure alt text"
-    assert {cell_id: student.get(cell_id) for cell_id in with_alt} == with_alt
+def test_student_notebooks_show_their_figures_as_the_masters_do(name):
+    def code(path):
+        return {c["id"]: "".join(c["source"]) for c in _cells(path) if c["cell_type"] == "code"}
+
+    master, student = code(ROOT / "notebooks" / "masters" / f"{name}.ipynb"), code(ROOT / "notebooks" / f"{name}.ipynb")
+    figures = {cell_id: source for cell_id, source in master.items() if computed_alts(source)}
+    assert figures, f"the master of {name} shows no figure through show_figure"
+    assert {cell_id: student.get(cell_id) for cell_id in figures} == figures

@@ -1,0 +1,83 @@
+"""labsupport.book.show_figure: the figure and its text alternative travel together."""
+
+import base64
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from labsupport import book, plots  # noqa: E402
+
+ALT = "Speed in rad/s rising to 10 rad/s within 5 s, the simulation on the closed form."
+
+
+@pytest.fixture()
+def shown(monkeypatch):
+    outputs = []
+    monkeypatch.setattr(book, "display", lambda bundle, raw: outputs.append(bundle))
+    return outputs
+
+
+def two_curves(**second):
+    fig, ax = plt.subplots()
+    t = np.linspace(0, 1, 50)
+    ax.plot(t, t, label="simulation")
+    ax.plot(t, t**2, **{"label": "closed form", **second})
+    ax.set_title("speed")
+    return fig
+
+
+def test_the_image_carries_the_alt_and_the_png(shown):
+    fig = two_curves(linestyle="--")
+    book.show_figure(fig, ALT + ' <script>"&')
+    (bundle,) = shown
+    html, png = bundle["text/html"], base64.b64decode(bundle["image/png"])
+    assert png.startswith(b"\x89PNG") and bundle["image/png"] in html
+    assert 'alt="Speed in rad/s rising to 10 rad/s' in html and "&lt;script&gt;&quot;&amp;" in html
+    assert "<script>" not in html
+    assert bundle["text/plain"] == ALT + ' <script>"&'
+    assert f'width="{int.from_bytes(png[16:20], "big")}"' in html
+    assert not plt.fignum_exists(fig.number)  # closed: the inline backend will not show it again
+
+
+def test_a_rendered_frame_is_shown_too(shown):
+    frame = np.zeros((24, 32, 3), dtype=np.uint8)
+    book.show_figure(frame, ALT)
+    assert base64.b64decode(shown[0]["image/png"])[16:24] == (32).to_bytes(4, "big") + (24).to_bytes(4, "big")
+
+
+@pytest.mark.parametrize("alt", ["", "a plot", "../_images/ab12.png", "   "])
+def test_an_alt_that_says_nothing_is_refused(shown, alt):
+    with pytest.raises(ValueError, match="text alternative of at least 5 words"):
+        book.show_figure(two_curves(linestyle="--"), alt)
+    assert shown == []
+
+
+def test_curves_told_apart_by_colour_alone_are_refused(shown):
+    with pytest.raises(ValueError, match=r"panel 'speed'.*'simulation' and 'closed form' differ by colour alone"):
+        book.show_figure(two_curves(), ALT)
+    assert shown == []
+
+
+@pytest.mark.parametrize("second", [dict(linestyle="--"), dict(marker="o"), dict(lw=5.0), dict(label="_hidden")])
+def test_a_line_style_a_marker_a_band_or_no_label_is_enough(shown, second):
+    book.show_figure(two_curves(**second), ALT)
+    assert len(shown) == 1
+
+
+def test_the_course_cycle_gives_six_distinct_curves(shown):
+    with plt.rc_context():
+        plots.course_style()
+        fig, ax = plt.subplots()
+        for k in range(6):
+            ax.plot([0, 1], [k, k + 1], label=f"curve {k}")
+        book.show_figure(fig, ALT)
+        fig, ax = plt.subplots()
+        for k in range(7):
+            ax.plot([0, 1], [k, k + 1], label=f"curve {k}")
+        with pytest.raises(ValueError, match="'curve 0' and 'curve 6'"):
+            book.show_figure(fig, ALT)
