@@ -1,0 +1,107 @@
+"""The launch buttons and the videos work from the keyboard alone (WCAG 2.1: 2.1.1 Keyboard,
+2.4.7 Focus Visible).
+
+A reader who cannot use a mouse presses Tab from the top of the page until the focus reaches
+the rocket (launch) button, opens it with Enter, moves to "Colab" with the arrow keys, and
+gets this notebook's Colab address; on the Task 3 and Task 4 pages, Tab also reaches each
+video, and Space plays and pauses it. Every focused control must show where the focus is.
+"""
+
+from __future__ import annotations
+
+import pytest
+from sitetools import expected_colab_url, is_notebook, require_site, toc_pages
+
+NOTEBOOK_PAGES = [p for p in toc_pages() if is_notebook(p)]
+#: The most Tab presses a control may take to reach (the header, the sidebar and the page's
+#: own links come first).
+MAX_TABS = 250
+
+FOCUSED_JS = r"""
+() => {
+  const e = document.activeElement;
+  if (!e || e === document.body) return null;
+  const s = getComputedStyle(e);
+  return {tag: e.tagName, label: e.getAttribute('aria-label') || '', href: e.getAttribute('href') || '',
+          text: (e.innerText || '').trim().slice(0, 40), expanded: e.getAttribute('aria-expanded'),
+          outline: s.outlineStyle !== 'none' && parseFloat(s.outlineWidth) > 0, shadow: s.boxShadow !== 'none',
+          paused: e.tagName === 'VIDEO' ? e.paused : null};
+}
+"""
+
+
+@pytest.fixture()
+def tab_page(browser, server):
+    contexts = []
+
+    def open_page(page: str):
+        context = browser.new_context(viewport={"width": 1280, "height": 900})
+        contexts.append(context)
+        tab = context.new_page()
+        tab.goto(f"{server}/{page}.html", wait_until="load")
+        return tab
+
+    yield open_page
+    for context in contexts:
+        context.close()
+
+
+def tab_until(tab, wanted, limit: int = MAX_TABS):
+    """Press Tab until ``wanted(focused)`` holds; ``(presses, focused)``, or ``(None, last)``."""
+    focused = None
+    for presses in range(1, limit + 1):
+        tab.keyboard.press("Tab")
+        focused = tab.evaluate(FOCUSED_JS)
+        if focused and wanted(focused):
+            return presses, focused
+    return None, focused
+
+
+def focus_is_visible(focused: dict) -> bool:
+    return focused["outline"] or focused["shadow"]
+
+
+@pytest.mark.parametrize("page", NOTEBOOK_PAGES)
+def test_the_launch_button_opens_colab_from_the_keyboard(tab_page, page):
+    require_site()
+    tab = tab_page(page)
+    presses, rocket = tab_until(tab, lambda f: f["label"] == "Launch interactive content")
+    assert presses, f"{page}: {MAX_TABS} Tab presses never reached the launch (rocket) button; last focus {rocket}"
+    assert focus_is_visible(rocket), f"{page}: the focused launch button shows no focus indicator"
+    tab.keyboard.press("Enter")
+    assert tab.evaluate(FOCUSED_JS)["expanded"] == "true", f"{page}: Enter does not open the launch menu"
+    tab.keyboard.press("ArrowDown")
+    colab = tab.evaluate(FOCUSED_JS)
+    assert colab and colab["text"] == "Colab", f"{page}: the arrow key does not reach the Colab item ({colab})"
+    assert colab["href"] == expected_colab_url(page)
+    assert focus_is_visible(colab), f"{page}: the focused Colab item shows no focus indicator"
+    tab.keyboard.press("Escape")
+    assert tab.evaluate(FOCUSED_JS)["expanded"] == "false", f"{page}: Escape does not close the launch menu"
+
+
+VIDEO_PAGES = [p for p in NOTEBOOK_PAGES if p.split("/")[-1].startswith(("task3", "task4"))]
+
+
+@pytest.mark.parametrize("page", VIDEO_PAGES)
+def test_every_video_is_reached_and_played_from_the_keyboard(tab_page, page):
+    site = require_site()
+    n_videos = (site / f"{page}.html").read_text(encoding="utf-8").count("<video")
+    assert n_videos >= 2, f"{page}: expected its videos, found {n_videos}"
+    tab = tab_page(page)
+    seen: set[str] = set()
+    for k in range(n_videos):
+        # Tab also walks through a focused video's own controls (inside it), so wait for the next video
+        presses, video = tab_until(tab, lambda f: f["tag"] == "VIDEO" and f["label"] not in seen)
+        assert presses, f"{page}: Tab never reached video {k + 1} of {n_videos}"
+        seen.add(video["label"])
+        assert focus_is_visible(video), f"{page}: video {k + 1} shows no focus indicator when focused"
+        before = video["paused"]
+        tab.keyboard.press("Space")
+        tab.wait_for_timeout(300)
+        after = tab.evaluate(FOCUSED_JS)
+        assert after["tag"] == "VIDEO" and after["paused"] != before, (
+            f"{page}: Space on video {k + 1} did not {'play' if before else 'pause'} it"
+        )
+        tab.keyboard.press("Space")
+        tab.wait_for_timeout(300)
+        assert tab.evaluate(FOCUSED_JS)["paused"] == before, f"{page}: a second Space did not toggle video {k + 1} back"
