@@ -106,7 +106,7 @@ def show_figure(figure, alt: str) -> None:
 def _refuse_colour_only_curves(figure) -> None:
     """``ValueError`` if two labelled curves of one panel share line style, marker and width class."""
     for ax in figure.axes:
-        seen: dict[tuple[str, str], str] = {}
+        seen: dict[tuple[str, str, bool], str] = {}
         for line in ax.get_lines():
             label = str(line.get_label())
             if label.startswith("_"):
