@@ -430,3 +430,18 @@ def test_within_reach_keeps_inner_points_and_differentiates_the_outer_path():
     np.testing.assert_allclose(pulled.vel[600:, 0], 0.0, atol=1e-12)  # held on the sphere: at rest
     with pytest.raises(ValueError, match="radius"):
         trajectories.within_reach(line, np.zeros(3), -1.0)
+
+
+def test_tracking_law_refuses_a_singular_jacobian(ur, circle):
+    """Stretched out (all joints at zero: shoulder, elbow and wrist in line) J loses rank; the law
+    says so instead of returning a huge torque."""
+    model, _ = ur
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)  # qpos = 0
+    site, arrays = model.site(ur5e.SITE).id, PoseArrays.for_model(model)
+    assert np.linalg.matrix_rank(site_jacobian(model, data, site), tol=1e-9) < 6
+    dt_kv = implicit_damping(Servo.from_model(model), model.opt.timestep)
+    with pytest.raises(ValueError, match="singular"):
+        tracking_torque(
+            model, data, site, circle.pos[0], circle.vel[0], circle.acc[0], QUAT_D, LAB_GAINS, dt_kv, arrays
+        )

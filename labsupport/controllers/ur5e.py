@@ -22,7 +22,7 @@ import mujoco
 import numpy as np
 
 from labsupport import validate
-from labsupport.dynamics import site_jacobian, site_jdot_qdot, solve_mass
+from labsupport.dynamics import jacobian_solve, mass_matrix, site_jacobian, site_jdot_qdot, solve_mass
 from labsupport.metrics import rotation_error
 
 
@@ -73,8 +73,7 @@ class PoseArrays:
         xdot_d, xddot_d: (6,) the target's twist and its rate (the angular parts stay zero:
             the target orientation is constant).
         jdot_qdot: (6,) :math:`\dot J\dot q`.
-        JMinv: (6, nv) :math:`J M^{-1}`. lam_inv: (6, 6) :math:`J M^{-1} J^\top`, then its
-            Cholesky factor. z: (6,) a task-space force.
+        M: (nv, nv) the mass matrix.
     """
 
     J: np.ndarray
@@ -83,9 +82,7 @@ class PoseArrays:
     xdot_d: np.ndarray
     xddot_d: np.ndarray
     jdot_qdot: np.ndarray
-    JMinv: np.ndarray
-    lam_inv: np.ndarray
-    z: np.ndarray
+    M: np.ndarray
 
     @classmethod
     def for_model(cls, model: mujoco.MjModel) -> PoseArrays:
@@ -97,9 +94,7 @@ class PoseArrays:
             xdot_d=np.zeros(6),
             xddot_d=np.zeros(6),
             jdot_qdot=np.zeros(6),
-            JMinv=np.zeros((6, nv)),
-            lam_inv=np.zeros((6, 6)),
-            z=np.zeros(6),
+            M=np.zeros((nv, nv)),
         )
 
 
@@ -152,28 +147,25 @@ def tracking_torque(
 
     .. math::
         a &= \ddot x_d - K_d(J\dot q - \dot x_d) - K_p e - \dot J\dot q \\
-        \tau_r &= J^\top \Lambda\, a + h, \qquad \Lambda = (J M^{-1} J^\top)^{-1} \\
-        \tau &= \tau_r + \Delta t\,K_v\,M^{-1}(\tau_r - h)
+        \ddot q^* &= J^{-1} a \\
+        \tau &= (M + \Delta t\,K_v)\,\ddot q^* + h
 
     ``x_d``, ``xdot_d``, ``xddot_d`` (3,) are the target's position, velocity and acceleration;
     its orientation ``quat_d`` is constant. ``implicit_inertia`` is the diagonal
     :math:`\Delta t\,K_v` (:func:`labsupport.actuators.implicit_damping`; zeros leave the
     compensation out), and ``jdot=False`` leaves :math:`\dot J\dot q` out.
-    :math:`\Lambda` is applied by MuJoCo's Cholesky solve of :math:`J M^{-1} J^\top`, and since
-    :math:`\tau_r - h = J^\top\Lambda a`, the acceleration :math:`M^{-1}(\tau_r - h)` is
-    :math:`(J M^{-1})^\top \Lambda a`, read off the :math:`J M^{-1}` already at hand.
+
+    This is the operational-space law :math:`\tau_r = J^\top\Lambda a + h`,
+    :math:`\Lambda = (J M^{-1} J^\top)^{-1}`, written for the UR5e's square Jacobian: there
+    :math:`J^\top\Lambda = M J^{-1}`, so :math:`\tau_r = M\ddot q^* + h`, and the servo
+    compensation :math:`\Delta t\,K_v M^{-1}(\tau_r - h)` is :math:`\Delta t\,K_v\,\ddot q^*`. A
+    singular :math:`J` raises ``ValueError``.
     """
     J = site_jacobian(model, data, site, out=arrays.J)
     e = pose_error(data, site, x_d, quat_d, out=arrays.e, work=arrays.quats)
     arrays.xdot_d[:3], arrays.xddot_d[:3] = xdot_d, xddot_d
     jdot_qdot = site_jdot_qdot(model, data, site, out=arrays.jdot_qdot) if jdot else 0.0
     a = arrays.xddot_d - gains.kd * (J @ data.qvel - arrays.xdot_d) - gains.kp * e - jdot_qdot
-    JMinv = solve_mass(model, data, J, out=arrays.JMinv)  # J M^-1 (M is symmetric)
-    L = arrays.lam_inv
-    mujoco.mju_mulMatMatT(L, JMinv, J)  # Lambda^-1 = J M^-1 J^T, ...
-    mujoco.mju_cholFactor(L, 0.0)  # ... its Cholesky factor
-    z = arrays.z
-    mujoco.mju_cholSolve(z, L, a)  # z = Lambda a
-    tau_r = J.T @ z + data.qfrc_bias
-    qddot = JMinv.T @ z  # M^-1 (tau_r - h) = M^-1 J^T Lambda a
-    return tau_r + implicit_inertia * qddot
+    qddot = jacobian_solve(J, a)
+    M = mass_matrix(model, data, out=arrays.M)
+    return M @ qddot + implicit_inertia * qddot + data.qfrc_bias
