@@ -214,12 +214,14 @@ def video_html(
 ) -> str:
     """HTML showing ``frames`` as an H.264 MP4 (mediapy); ``qp`` trades size for quality.
 
+    The video waits for the reader: it starts from its controls (or Space once focused), so
+    nothing on the page moves unasked (WCAG 2.1, 2.2.2), and loops once started.
     ``description`` is the video's text alternative: the caption under it, its accessible
     name (``aria-label``), and what a browser that cannot play it shows instead.
     """
     frames = np.asarray(frames)
     data = mediapy.compress_video(frames, fps=fps, qp=qp)
-    html = mediapy.html_from_compressed_video(data, frames.shape[2], frames.shape[1], title=title)
+    html = mediapy.html_from_compressed_video(data, frames.shape[2], frames.shape[1], title=title, autoplay=False)
     if description:
         text = escape(description)
         html = html.replace("<video ", f'<video aria-label="{text}" ', 1)

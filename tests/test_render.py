@@ -6,6 +6,7 @@ first imported.
 
 import json
 import os
+import re
 import subprocess
 import sys
 
@@ -142,6 +143,15 @@ def test_video_has_a_text_alternative():
     assert "<figcaption>The arm &lt;moves&gt; round the circle.</figcaption>" in html
     assert "does not support the video tag" not in html
     assert 'type="video/mp4"' in html and 'width="64" height="48"' in html
+
+
+def test_video_waits_for_the_reader():
+    """No video starts by itself (WCAG 2.2.2): it has controls and no autoplay attribute."""
+    frames = np.zeros((4, 16, 16, 3), dtype=np.uint8)
+    video = re.search(
+        r"<video[^>]*>", render.video_html(frames, fps=4, description="A still arm, four frames.")
+    ).group()
+    assert " controls" in video and "autoplay" not in video
 
 
 def test_render_needs_a_3d_reference():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -74,6 +75,14 @@ def test_videos_play(visit, page):
         )
         assert v["played"], f"{page}: video {v['src']} did not play ({v['playError']})"
         assert v["type"] in ("video/mp4", ""), f"{page}: video {v['src']} is {v['type']}, not MP4"
+
+
+@pytest.mark.parametrize("page", PAGES)
+def test_videos_wait_for_the_reader(page):
+    """No video starts by itself (WCAG 2.2.2); each has its own controls."""
+    html = (require_site() / f"{page}.html").read_text(encoding="utf-8")
+    for tag in re.findall(r"<video\b[^>]*>", html):
+        assert "autoplay" not in tag and "controls" in tag, f"{page}: {tag[:120]}"
 
 
 @pytest.mark.parametrize("page", NOTEBOOK_PAGES)
