@@ -1,11 +1,12 @@
-r"""Control laws for the single joint :math:`\tau = M\ddot\theta + h(\theta,\dot\theta)`.
+r"""Control laws for the single joint
+:math:`\tau = M\ddot\theta + h(\theta,\dot\theta)`.
 
-Each law is a plain function of numbers (or arrays of them) returning the torque, so the same
-function runs on the analytic plant (wrapped as ``torque(t, state)`` for
+Each law is a plain function of numbers (or arrays of them) returning the torque, so
+the same function runs on the analytic plant (wrapped as ``torque(t, state)`` for
 :meth:`labsupport.plants.SingleJoint.simulate`) and on the MuJoCo arm (wrapped as
 ``controller(model, data)`` for :func:`labsupport.sim.simulate`). A law's *model*
-(:math:`\tilde M`, :math:`\tilde h`) is a :class:`~labsupport.plants.SingleJoint` that may
-differ from the true plant.
+(:math:`\tilde M`, :math:`\tilde h`) is a :class:`~labsupport.plants.SingleJoint`
+that may differ from the true plant.
 """
 
 from __future__ import annotations
@@ -17,12 +18,13 @@ def pi_speed_torque(t, theta, theta_dot, omega_d, Kp, Ki, theta0=0.0):
     r"""PI speed control of :math:`M\dot\omega + b\omega = \tau`:
 
     .. math:: \tau = K_p(\omega_d - \omega) + K_i\int_0^t(\omega_d - \omega)\,dt'
-                   = K_p(\omega_d - \dot\theta) + K_i\big(\omega_d t - (\theta - \theta_0)\big)
+                   = K_p(\omega_d - \dot\theta)
+                     + K_i\big(\omega_d t - (\theta - \theta_0)\big)
 
-    The angle is the integral of the speed, so the integral of the speed error needs no extra
-    state. The speed error :math:`e = \omega_d - \omega` obeys
-    :math:`M\ddot e + (b + K_p)\dot e + K_i e = 0`, so :func:`labsupport.gains.pd_gains` designs
-    (Ki, Kp) as it designs (Kp, Kd) for PD.
+    The angle is the integral of the speed, so the integral of the speed error needs
+    no extra state. The speed error :math:`e = \omega_d - \omega` obeys
+    :math:`M\ddot e + (b + K_p)\dot e + K_i e = 0`, so
+    :func:`labsupport.gains.pd_gains` designs (Ki, Kp) as it designs (Kp, Kd) for PD.
     """
     speed_error = omega_d - theta_dot
     integral_of_speed_error = omega_d * t - (theta - theta0)
@@ -30,7 +32,8 @@ def pi_speed_torque(t, theta, theta_dot, omega_d, Kp, Ki, theta0=0.0):
 
 
 def pd_torque(theta, theta_dot, theta_d, theta_dot_d, Kp, Kd):
-    r"""PD feedback (Eq. 11.24): :math:`\tau_{fb} = K_p(\theta_d - \theta) + K_d(\dot\theta_d - \dot\theta)`.
+    r"""PD feedback (Eq. 11.24):
+    :math:`\tau_{fb} = K_p(\theta_d - \theta) + K_d(\dot\theta_d - \dot\theta)`.
 
     For a set-point, :math:`\dot\theta_d = 0`.
     """
@@ -42,16 +45,22 @@ def feedforward_torque(model: SingleJoint, theta_d, theta_dot_d, theta_ddot_d):
 
     .. math:: \tau_{ff} = \tilde M\ddot\theta_d + \tilde h(\theta_d,\dot\theta_d)
 
-    It uses the reference only, never the measured state: the torque the model says the move needs.
+    It uses the reference only, never the measured state: the torque the model says
+    the move needs.
     """
     return model.M * theta_ddot_d + model.h(theta_d, theta_dot_d)
 
 
-def computed_torque(model: SingleJoint, theta, theta_dot, theta_d, theta_dot_d, theta_ddot_d, Kp, Kd):
+def computed_torque(
+    model: SingleJoint, theta, theta_dot, theta_d, theta_dot_d, theta_ddot_d, Kp, Kd
+):
     r"""Feedforward plus feedback (Eq. 11.35):
 
-    .. math:: \tau = \underbrace{\tilde M\ddot\theta_d + \tilde h(\theta_d,\dot\theta_d)}_{\tau_{ff}}
-                   + \underbrace{K_p(\theta_d-\theta) + K_d(\dot\theta_d-\dot\theta)}_{\tau_{fb}}
+    .. math::
+        \tau = \underbrace{\tilde M\ddot\theta_d
+                           + \tilde h(\theta_d,\dot\theta_d)}_{\tau_{ff}}
+               + \underbrace{K_p(\theta_d-\theta)
+                             + K_d(\dot\theta_d-\dot\theta)}_{\tau_{fb}}
     """
     tau_ff = feedforward_torque(model, theta_d, theta_dot_d, theta_ddot_d)
     tau_fb = pd_torque(theta, theta_dot, theta_d, theta_dot_d, Kp, Kd)
