@@ -143,3 +143,20 @@ def test_screenshots_saved(visit):
         visit(page)
         shot = ARTIFACTS / "screenshots" / f"{page.replace('/', '__')}.png"
         assert shot.is_file() and shot.stat().st_size > 10_000, shot
+
+
+VISIBLE_SEARCH_JS = """() => [...document.querySelectorAll('.search-button-field')]
+  .filter(e => e.offsetParent !== null && e.getBoundingClientRect().width > 0).length"""
+
+
+@pytest.mark.parametrize("width", (1024, 1280, 1920))
+def test_one_search_field(browser, server, width):
+    """The sidebar holds the search field; the theme must not add a second one in a top bar."""
+    context = browser.new_context(viewport={"width": width, "height": 900})
+    try:
+        tab = context.new_page()
+        tab.goto(f"{server}/notebooks/task1_single_joint.html", wait_until="load")
+        visible = tab.evaluate(VISIBLE_SEARCH_JS)
+    finally:
+        context.close()
+    assert visible == 1, f"{visible} search fields visible at {width} px"
