@@ -82,17 +82,14 @@ def bias_forces(data: mujoco.MjData) -> np.ndarray:
     return data.qfrc_bias.copy()
 
 
-def solve_mass(
-    model: mujoco.MjModel, data: mujoco.MjData, rhs: np.ndarray, out: np.ndarray | None = None
-) -> np.ndarray:
+def solve_mass(model: mujoco.MjModel, data: mujoco.MjData, rhs: np.ndarray) -> np.ndarray:
     r""":math:`x = M(q)^{-1} y` using MuJoCo's sparse factorisation (no explicit inverse).
 
-    ``rhs`` is ``(nv,)`` or ``(k, nv)`` (one right-hand side per row); ``out``, of the same
-    shape, is an optional preallocated result. With ``J`` as ``rhs`` the rows of the result
-    are those of :math:`J M^{-1}` (:math:`M` is symmetric).
+    ``rhs`` is ``(nv,)`` or ``(k, nv)`` (one right-hand side per row). With ``J`` as ``rhs``
+    the rows of the result are those of :math:`J M^{-1}` (:math:`M` is symmetric).
     """
     y = np.ascontiguousarray(rhs, dtype=float)
-    x = np.empty_like(y) if out is None else out
+    x = np.empty_like(y)
     if y.ndim == 1:  # MuJoCo solves for rows
         mujoco.mj_solveM(model, data, x[None], y[None])
     else:
