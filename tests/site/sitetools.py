@@ -323,3 +323,21 @@ SUMMARY: list[str] = []
 def dump_json(name: str, data) -> None:
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     (ARTIFACTS / name).write_text(json.dumps(data, indent=1, default=str), encoding="utf-8")
+
+
+@pytest.fixture()
+def tab_page(browser, server):
+    """``tab_page(page, width=1280)``: a fresh browser tab showing ``page`` in a window
+    ``width`` px wide, for tests that interact with it (closed after the test)."""
+    contexts = []
+
+    def open_page(page: str, width: int = VIEWPORT["width"]):
+        context = browser.new_context(viewport={"width": width, "height": VIEWPORT["height"]})
+        contexts.append(context)
+        tab = context.new_page()
+        tab.goto(f"{server}/{page}.html", wait_until="load")
+        return tab
+
+    yield open_page
+    for context in contexts:
+        context.close()

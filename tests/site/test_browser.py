@@ -150,13 +150,7 @@ VISIBLE_SEARCH_JS = """() => [...document.querySelectorAll('.search-button-field
 
 
 @pytest.mark.parametrize("width", (1024, 1280, 1920))
-def test_one_search_field(browser, server, width):
+def test_one_search_field(tab_page, width):
     """The sidebar holds the search field; the theme must not add a second one in a top bar."""
-    context = browser.new_context(viewport={"width": width, "height": 900})
-    try:
-        tab = context.new_page()
-        tab.goto(f"{server}/notebooks/task1_single_joint.html", wait_until="load")
-        visible = tab.evaluate(VISIBLE_SEARCH_JS)
-    finally:
-        context.close()
+    visible = tab_page("notebooks/task1_single_joint", width).evaluate(VISIBLE_SEARCH_JS)
     assert visible == 1, f"{visible} search fields visible at {width} px"

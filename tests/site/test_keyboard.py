@@ -30,22 +30,6 @@ FOCUSED_JS = r"""
 """
 
 
-@pytest.fixture()
-def tab_page(browser, server):
-    contexts = []
-
-    def open_page(page: str):
-        context = browser.new_context(viewport={"width": 1280, "height": 900})
-        contexts.append(context)
-        tab = context.new_page()
-        tab.goto(f"{server}/{page}.html", wait_until="load")
-        return tab
-
-    yield open_page
-    for context in contexts:
-        context.close()
-
-
 def tab_until(tab, wanted, limit: int = MAX_TABS):
     """Press Tab until ``wanted(focused)`` holds; ``(presses, focused)``, or ``(None, last)``."""
     focused = None

@@ -87,17 +87,11 @@ WIDE_LAWS_JS = """names => [...document.querySelectorAll('main div.highlight pre
 
 @pytest.mark.parametrize("width", WIDTHS)
 @pytest.mark.parametrize("notebook", TASKS)
-def test_laws_read_without_scrolling_sideways(browser, server, notebook, width):
+def test_laws_read_without_scrolling_sideways(tab_page, notebook, width):
     """Each law's code block shows its whole width (the laws keep to 85 columns, and
     course.css leaves a code block room for 85 from 1024 px wide windows up)."""
     names = sorted(laws_run(notebook))
-    context = browser.new_context(viewport={"width": width, "height": 900})
-    try:
-        tab = context.new_page()
-        tab.goto(f"{server}/notebooks/{notebook}.html", wait_until="load")
-        blocks = tab.evaluate(WIDE_LAWS_JS, names)
-    finally:
-        context.close()
+    blocks = tab_page(f"notebooks/{notebook}", width).evaluate(WIDE_LAWS_JS, names)
     assert len(blocks) >= len(names), f"{notebook}: found {len(blocks)} law blocks for {names}"
     wide = [b for b in blocks if b["scroll"] > b["width"] + 1]
     assert not wide, f"{notebook} at {width} px: law code scrolls sideways: {wide}"
