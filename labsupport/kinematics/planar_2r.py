@@ -155,14 +155,22 @@ def inverse_kinematics(x, arm: Planar2R = LAB_ARM, branch: str = "up", clip: boo
     return np.stack([q1, q2], axis=-1)
 
 
-def joint_reference(ref: Reference, arm: Planar2R = LAB_ARM, branch: str = "up", min_det: float = 1e-9) -> Reference:
-    r"""Turn a Cartesian reference :math:`(x_d, \dot x_d, \ddot x_d)` into a joint reference:
+def joint_reference(
+    ref: Reference,
+    arm: Planar2R = LAB_ARM,
+    branch: str = "up",
+    min_det: float = 1e-9,
+) -> Reference:
+    r"""Turn a Cartesian reference :math:`(x_d, \dot x_d, \ddot x_d)` into a joint
+    reference:
 
-    .. math:: q_d = \mathrm{IK}(x_d),\qquad \dot q_d = J(q_d)^{-1}\dot x_d,\qquad
-              \ddot q_d = J(q_d)^{-1}\big(\ddot x_d - \dot J(q_d,\dot q_d)\,\dot q_d\big)
+    .. math::
+        q_d &= \mathrm{IK}(x_d),\qquad \dot q_d = J(q_d)^{-1}\dot x_d,\\
+        \ddot q_d &= J(q_d)^{-1}\big(\ddot x_d - \dot J(q_d,\dot q_d)\,\dot q_d\big)
 
-    Works on one instant ``(2,)`` or a whole trajectory ``(N, 2)``. Raises ``ValueError`` if the
-    path reaches a singular configuration (:math:`|\det J| <` ``min_det``: arm stretched or folded).
+    Works on one instant ``(2,)`` or a whole trajectory ``(N, 2)``. Raises
+    ``ValueError`` if the path reaches a singular configuration
+    (:math:`|\det J| <` ``min_det``: arm stretched or folded).
     """
     x, xdot, xddot = (np.asarray(a, dtype=float) for a in ref)
     q = inverse_kinematics(x, arm, branch)
@@ -170,9 +178,9 @@ def joint_reference(ref: Reference, arm: Planar2R = LAB_ARM, branch: str = "up",
     det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
     if np.any(np.abs(det) < min_det):
         raise ValueError(
-            "the path passes through a singular configuration (arm stretched or folded): "
-            "det J = 0 there, so no joint velocity reproduces the Cartesian one; keep the path "
-            "inside the workspace annulus"
+            "the path passes through a singular configuration (arm stretched or "
+            "folded): det J = 0 there, so no joint velocity reproduces the Cartesian "
+            "one; keep the path inside the workspace annulus"
         )
     qdot = np.linalg.solve(J, xdot[..., None])[..., 0]
     qddot = np.linalg.solve(J, (xddot - jdot_qdot(q, qdot, arm))[..., None])[..., 0]
