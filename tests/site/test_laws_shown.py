@@ -95,3 +95,20 @@ def test_laws_read_without_scrolling_sideways(tab_page, notebook, width):
     assert len(blocks) >= len(names), f"{notebook}: found {len(blocks)} law blocks for {names}"
     wide = [b for b in blocks if b["scroll"] > b["width"] + 1]
     assert not wide, f"{notebook} at {width} px: law code scrolls sideways: {wide}"
+
+
+WIDE_CODE_JS = """() => [...document.querySelectorAll(
+    'main div.cell:not(.tag_hide-input) div.cell_input pre')]
+  .map(pre => ({head: pre.textContent.split('\\n')[0], scroll: pre.scrollWidth, width: pre.clientWidth}))"""
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+@pytest.mark.parametrize("notebook", TASKS)
+def test_code_reads_without_scrolling_sideways(tab_page, notebook, width):
+    """The code cells a reader sees without unfolding anything, those that run the lab,
+    show their whole width; the figure cells (plotting and the figure's text
+    alternative) are folded away (``hide-input``) and may be wider."""
+    blocks = tab_page(f"notebooks/{notebook}", width).evaluate(WIDE_CODE_JS)
+    assert len(blocks) > 5, f"{notebook}: found only {len(blocks)} unfolded code cells"
+    wide = [b for b in blocks if b["scroll"] > b["width"] + 1]
+    assert not wide, f"{notebook} at {width} px: code scrolls sideways: {wide}"
