@@ -40,7 +40,7 @@ def test_shown_code_keeps_to_85_columns(path):
 
 @pytest.mark.parametrize("path", TASKS, ids=lambda p: p.stem)
 def test_every_figure_cell_is_folded(path):
-    """A cell that draws a figure or a video with its text alternative is folded, so the page
+    """A cell that draws a Matplotlib figure with its text alternative is folded, so the page
     reads like the lab: the runs and their numbers, then the figure."""
     cells = json.loads(path.read_text(encoding="utf-8"))["cells"]
     drawing = [c for c in cells if c["cell_type"] == "code" and "show_figure(fig" in "".join(c["source"])]
