@@ -178,9 +178,9 @@ def joint_reference(
     det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
     if np.any(np.abs(det) < min_det):
         raise ValueError(
-            "the path passes through a singular configuration (arm stretched or "
-            "folded): det J = 0 there, so no joint velocity reproduces the Cartesian "
-            "one; keep the path inside the workspace annulus"
+            "the path passes through a singular configuration (arm stretched "
+            "or folded): det J = 0 there, so no joint velocity reproduces the "
+            "Cartesian one; keep the path inside the workspace annulus"
         )
     qdot = np.linalg.solve(J, xdot[..., None])[..., 0]
     qddot = np.linalg.solve(J, (xddot - jdot_qdot(q, qdot, arm))[..., None])[..., 0]

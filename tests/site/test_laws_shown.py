@@ -4,6 +4,9 @@ A Task notebook runs laws it imports from ``labsupport.controllers``; each of th
 on the page with ``labsupport.book.show_law``, so the built HTML holds a highlighted code block
 with that function's ``def``. The code comes from the package itself, so it is compared with
 ``inspect.getsource`` of the installed function: page and package cannot disagree.
+
+Every notebook page also reads without scrolling sideways at common window widths: the laws,
+the unfolded code cells and the printouts.
 """
 
 from __future__ import annotations
@@ -97,18 +100,27 @@ def test_laws_read_without_scrolling_sideways(tab_page, notebook, width):
     assert not wide, f"{notebook} at {width} px: law code scrolls sideways: {wide}"
 
 
-WIDE_CODE_JS = """() => [...document.querySelectorAll(
-    'main div.cell:not(.tag_hide-input) div.cell_input pre')]
-  .map(pre => ({head: pre.textContent.split('\\n')[0], scroll: pre.scrollWidth, width: pre.clientWidth}))"""
+#: Every notebook page: the Tasks and the Problems as students get them.
+PAGES = TASKS + ["problem1_reaching", "problem2_tracking"]
+
+WIDE_CODE_JS = """() => [...document.querySelectorAll('main div.cell:not(.tag_hide-input) pre')]
+  .map(pre => ({head: pre.textContent.split('\\n')[0].slice(0, 60),
+                output: pre.closest('div.cell_output') !== null,
+                scroll: pre.scrollWidth, width: pre.clientWidth}))"""
 
 
 @pytest.mark.parametrize("width", WIDTHS)
-@pytest.mark.parametrize("notebook", TASKS)
+@pytest.mark.parametrize("notebook", PAGES)
 def test_code_reads_without_scrolling_sideways(tab_page, notebook, width):
-    """The code cells a reader sees without unfolding anything, those that run the lab,
-    show their whole width; the figure cells (plotting and the figure's text
-    alternative) are folded away (``hide-input``) and may be wider."""
+    """What a reader sees without unfolding anything shows its whole width: the code cells
+    that run the lab (the figure cells, plotting and the figure's text alternative, are
+    folded away with ``hide-input`` and may be wider), the laws' code, and what the cells
+    print (course.css wraps printed text at the page's width)."""
     blocks = tab_page(f"notebooks/{notebook}", width).evaluate(WIDE_CODE_JS)
-    assert len(blocks) > 5, f"{notebook}: found only {len(blocks)} unfolded code cells"
+    inputs = [b for b in blocks if not b["output"]]
+    outputs = [b for b in blocks if b["output"]]
+    assert len(inputs) > 5 and len(outputs) > 3, (
+        f"{notebook}: found only {len(inputs)} unfolded code cells and {len(outputs)} printouts"
+    )
     wide = [b for b in blocks if b["scroll"] > b["width"] + 1]
-    assert not wide, f"{notebook} at {width} px: code scrolls sideways: {wide}"
+    assert not wide, f"{notebook} at {width} px: code or printout scrolls sideways: {wide}"
