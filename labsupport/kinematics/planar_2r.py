@@ -1,16 +1,18 @@
-r"""Kinematics of the 2R planar arm: forward and inverse kinematics, Jacobian, :math:`\dot J\dot q`.
+r"""Kinematics of the 2R planar arm: forward and inverse kinematics, Jacobian,
+:math:`\dot J\dot q`.
 
-Joint angles :math:`q = (q_1, q_2)` (relative, :math:`q_2` measured from link 1), link
-lengths :math:`l_1, l_2`. With :math:`c_1 = \cos q_1`, :math:`c_{12} = \cos(q_1 + q_2)` (and
-likewise for sines), the end effector is at
+Joint angles :math:`q = (q_1, q_2)` (relative, :math:`q_2` measured from link 1),
+link lengths :math:`l_1, l_2`. With :math:`c_1 = \cos q_1`,
+:math:`c_{12} = \cos(q_1 + q_2)` (and likewise for sines), the end effector is at
 
 .. math:: x = l_1 c_1 + l_2 c_{12}, \qquad y = l_1 s_1 + l_2 s_{12}.
 
-Every function takes arrays whose last axis holds the two components, so a whole trajectory
-``(N, 2)`` goes through one call.
+Every function takes arrays whose last axis holds the two components, so a whole
+trajectory ``(N, 2)`` goes through one call.
 
 The two inverse-kinematics branches are named as in the lab: ``"up"`` is
-:math:`q_2 = +\arccos D \ge 0` (the lab's ``elbow_up=True``), ``"down"`` is :math:`q_2 \le 0`.
+:math:`q_2 = +\arccos D \ge 0` (the lab's ``elbow_up=True``), ``"down"`` is
+:math:`q_2 \le 0`.
 """
 
 from __future__ import annotations
@@ -40,8 +42,15 @@ class Planar2R:
     def __post_init__(self):
         for name in ("l1", "l2"):
             value = getattr(self, name)
-            if not isinstance(value, (int, float, np.floating, np.integer)) or not np.isfinite(value) or value <= 0:
-                raise ValueError(f"{name} (a link length) must be a positive number, got {value!r}")
+            if (
+                not isinstance(value, (int, float, np.floating, np.integer))
+                or not np.isfinite(value)
+                or value <= 0
+            ):
+                raise ValueError(
+                    f"{name} (a link length) must be a positive number, "
+                    f"got {value!r}"
+                )
 
     @property
     def reach_min(self) -> float:
@@ -61,15 +70,25 @@ LAB_ARM = Planar2R()
 def _q(q, name="q") -> np.ndarray:
     q = np.asarray(q, dtype=float)
     if q.shape[-1:] != (2,):
-        raise ValueError(f"{name} must have 2 components on its last axis (q1, q2), got shape {q.shape}")
+        raise ValueError(
+            f"{name} must have 2 components on its last axis (q1, q2), "
+            f"got shape {q.shape}"
+        )
     return q
 
 
 def forward_kinematics(q, arm: Planar2R = LAB_ARM) -> np.ndarray:
-    r"""End-effector position :math:`x = (l_1 c_1 + l_2 c_{12},\; l_1 s_1 + l_2 s_{12})`, shape ``(..., 2)``."""
+    r"""End-effector position, shape ``(..., 2)``:
+    :math:`x = (l_1 c_1 + l_2 c_{12},\; l_1 s_1 + l_2 s_{12})`."""
     q = _q(q)
     q1, q12 = q[..., 0], q[..., 0] + q[..., 1]
-    return np.stack([arm.l1 * np.cos(q1) + arm.l2 * np.cos(q12), arm.l1 * np.sin(q1) + arm.l2 * np.sin(q12)], axis=-1)
+    return np.stack(
+        [
+            arm.l1 * np.cos(q1) + arm.l2 * np.cos(q12),
+            arm.l1 * np.sin(q1) + arm.l2 * np.sin(q12),
+        ],
+        axis=-1,
+    )
 
 
 def elbow_position(q, arm: Planar2R = LAB_ARM) -> np.ndarray:
@@ -81,9 +100,12 @@ def elbow_position(q, arm: Planar2R = LAB_ARM) -> np.ndarray:
 def jacobian(q, arm: Planar2R = LAB_ARM) -> np.ndarray:
     r"""Jacobian :math:`J = \partial x/\partial q`, shape ``(..., 2, 2)``:
 
-    .. math:: J = \begin{bmatrix} -l_1 s_1 - l_2 s_{12} & -l_2 s_{12} \\
-                                   \phantom{-}l_1 c_1 + l_2 c_{12} & \phantom{-}l_2 c_{12} \end{bmatrix},
-              \qquad \det J = l_1 l_2 \sin q_2.
+    .. math::
+        J = \begin{bmatrix}
+            -l_1 s_1 - l_2 s_{12} & -l_2 s_{12} \\
+            \phantom{-}l_1 c_1 + l_2 c_{12} & \phantom{-}l_2 c_{12}
+        \end{bmatrix},
+        \qquad \det J = l_1 l_2 \sin q_2.
     """
     q = _q(q)
     q1, q12 = q[..., 0], q[..., 0] + q[..., 1]
@@ -94,12 +116,17 @@ def jacobian(q, arm: Planar2R = LAB_ARM) -> np.ndarray:
 
 
 def jdot_qdot(q, qdot, arm: Planar2R = LAB_ARM) -> np.ndarray:
-    r"""Velocity-product acceleration :math:`\dot J(q,\dot q)\,\dot q`, shape ``(..., 2)``:
+    r"""Velocity-product acceleration :math:`\dot J(q,\dot q)\,\dot q`, shape
+    ``(..., 2)``:
 
-    .. math:: \dot J\dot q = -\begin{bmatrix} l_1 c_1 \dot q_1^2 + l_2 c_{12}(\dot q_1 + \dot q_2)^2 \\
-                                              l_1 s_1 \dot q_1^2 + l_2 s_{12}(\dot q_1 + \dot q_2)^2 \end{bmatrix}
+    .. math::
+        \dot J\dot q = -\begin{bmatrix}
+            l_1 c_1 \dot q_1^2 + l_2 c_{12}(\dot q_1 + \dot q_2)^2 \\
+            l_1 s_1 \dot q_1^2 + l_2 s_{12}(\dot q_1 + \dot q_2)^2
+        \end{bmatrix}
 
-    (the centripetal accelerations of the two links), so that :math:`\ddot x = J\ddot q + \dot J\dot q`.
+    (the centripetal accelerations of the two links), so that
+    :math:`\ddot x = J\ddot q + \dot J\dot q`.
     """
     q, qdot = _q(q), _q(qdot, "qdot")
     q1, q12 = q[..., 0], q[..., 0] + q[..., 1]
@@ -114,25 +141,31 @@ def jdot_qdot(q, qdot, arm: Planar2R = LAB_ARM) -> np.ndarray:
 
 
 def is_reachable(x, arm: Planar2R = LAB_ARM) -> np.ndarray:
-    r"""True where :math:`|l_1 - l_2| \le \lVert x\rVert \le l_1 + l_2` (the workspace annulus)."""
+    r"""True where :math:`|l_1 - l_2| \le \lVert x\rVert \le l_1 + l_2` (the
+    workspace annulus)."""
     r = np.linalg.norm(_q(x, "x"), axis=-1)
     return (r >= arm.reach_min) & (r <= arm.reach_max)
 
 
-def inverse_kinematics(x, arm: Planar2R = LAB_ARM, branch: str = "up", clip: bool = False) -> np.ndarray:
+def inverse_kinematics(
+    x, arm: Planar2R = LAB_ARM, branch: str = "up", clip: bool = False
+) -> np.ndarray:
     r"""Joint angles that put the end effector at ``x``, shape ``(..., 2)``:
 
-    .. math:: D = \frac{x^2 + y^2 - l_1^2 - l_2^2}{2 l_1 l_2},\quad q_2 = \pm\arccos D,\quad
-              q_1 = \operatorname{atan2}(y, x) - \operatorname{atan2}(l_2 \sin q_2,\; l_1 + l_2\cos q_2)
+    .. math::
+        D = \frac{x^2 + y^2 - l_1^2 - l_2^2}{2 l_1 l_2},\quad q_2 = \pm\arccos D,\\
+        q_1 = \operatorname{atan2}(y, x)
+              - \operatorname{atan2}(l_2 \sin q_2,\; l_1 + l_2\cos q_2)
 
     with :math:`+` for ``branch="up"`` and :math:`-` for ``"down"``.
 
     Args:
         x: target(s), shape ``(..., 2)``.
         branch: ``"up"`` (:math:`q_2 \ge 0`) or ``"down"`` (:math:`q_2 \le 0`).
-        clip: a target outside the annulus raises ``ValueError`` by default. With ``clip=True``
-            it is moved radially onto the nearest workspace boundary instead (``|D|`` clipped
-            to 1, as the lab's code does silently), and a ``RuntimeWarning`` says so.
+        clip: a target outside the annulus raises ``ValueError`` by default. With
+            ``clip=True`` it is moved radially onto the nearest workspace boundary
+            instead (``|D|`` clipped to 1, as the lab's code does silently), and a
+            ``RuntimeWarning`` says so.
     """
     if branch not in BRANCHES:
         raise ValueError(f"branch must be one of {BRANCHES}, got {branch!r}")
@@ -147,11 +180,19 @@ def inverse_kinematics(x, arm: Planar2R = LAB_ARM, branch: str = "up", clip: boo
             f"{arm.reach_min:.4g} m <= |x| <= {arm.reach_max:.4g} m"
         )
         if not clip:
-            raise ValueError(message + "; choose a reachable target (or pass clip=True)")
-        warnings.warn(message + "; clipped onto the workspace boundary", RuntimeWarning, stacklevel=2)
+            raise ValueError(
+                message + "; choose a reachable target (or pass clip=True)"
+            )
+        warnings.warn(
+            message + "; clipped onto the workspace boundary",
+            RuntimeWarning,
+            stacklevel=2,
+        )
     D = np.clip(D, -1.0, 1.0)
     q2 = np.arccos(D) if branch == "up" else -np.arccos(D)
-    q1 = np.arctan2(x[..., 1], x[..., 0]) - np.arctan2(arm.l2 * np.sin(q2), arm.l1 + arm.l2 * np.cos(q2))
+    q1 = np.arctan2(x[..., 1], x[..., 0]) - np.arctan2(
+        arm.l2 * np.sin(q2), arm.l1 + arm.l2 * np.cos(q2)
+    )
     return np.stack([q1, q2], axis=-1)
 
 
@@ -187,18 +228,23 @@ def joint_reference(
     return Reference(q, qdot, qddot)
 
 
-def sample_annulus(rng: np.random.Generator, arm: Planar2R = LAB_ARM, margin: float = 0.05) -> np.ndarray:
-    r"""A random target inside the workspace, kept ``margin`` away from both boundaries.
+def sample_annulus(
+    rng: np.random.Generator, arm: Planar2R = LAB_ARM, margin: float = 0.05
+) -> np.ndarray:
+    r"""A random target inside the workspace, kept ``margin`` away from both
+    boundaries.
 
-    Draws, as the lab does, first a radius :math:`\rho \sim U(|l_1 - l_2| + \text{margin},\;
-    l_1 + l_2 - \text{margin})` and then an angle :math:`\phi \sim U(-\pi, \pi)`, and returns
-    :math:`\rho(\cos\phi, \sin\phi)`. (Uniform in radius, so not uniform in area: points near
-    the inner edge are denser.)
+    Draws, as the lab does, first a radius
+    :math:`\rho \sim U(|l_1 - l_2| + \text{margin},\; l_1 + l_2 - \text{margin})` and
+    then an angle :math:`\phi \sim U(-\pi, \pi)`, and returns
+    :math:`\rho(\cos\phi, \sin\phi)`. (Uniform in radius, so not uniform in area:
+    points near the inner edge are denser.)
     """
     lo, hi = arm.reach_min + margin, arm.reach_max - margin
     if not lo < hi:
         raise ValueError(
-            f"margin={margin!r} leaves no room in the workspace annulus [{arm.reach_min}, {arm.reach_max}]"
+            f"margin={margin!r} leaves no room in the workspace annulus "
+            f"[{arm.reach_min}, {arm.reach_max}]"
         )
     radius = rng.uniform(lo, hi)
     angle = rng.uniform(-np.pi, np.pi)
