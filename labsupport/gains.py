@@ -46,6 +46,12 @@ def pd_gains(M: float, b: float, wn: float, zeta: float) -> Gains:
 
     Raises ``ValueError`` when the friction alone already damps more than asked
     (:math:`K_d < 0`).
+
+    Example: the lab's joint (:math:`M = 0.5` kg·m², :math:`b = 0.1` N·m·s/rad), critically
+    damped at 10 rad/s:
+
+    >>> pd_gains(0.5, 0.1, wn=10.0, zeta=1.0)
+    Gains(Kp=50.0, Kd=9.9)
     """
     M, wn = _positive("M", M), _positive("wn", wn)
     b, zeta = _non_negative("b", b), _non_negative("zeta", zeta)
@@ -59,7 +65,14 @@ def pd_gains(M: float, b: float, wn: float, zeta: float) -> Gains:
 
 
 def second_order(M: float, b: float, Kp: float, Kd: float) -> SecondOrder:
-    r"""Inverse of :func:`pd_gains`: :math:`\omega_n = \sqrt{K_p/M}`, :math:`\zeta = (b + K_d)/(2\sqrt{K_p M})`."""
+    r"""Inverse of :func:`pd_gains`: :math:`\omega_n = \sqrt{K_p/M}`, :math:`\zeta = (b + K_d)/(2\sqrt{K_p M})`.
+
+    Example: the gains of :func:`pd_gains`'s example give back its design.
+
+    >>> wn, zeta = second_order(0.5, 0.1, Kp=50.0, Kd=9.9)
+    >>> print(f"wn = {wn:.3f} rad/s, zeta = {zeta:.3f}")
+    wn = 10.000 rad/s, zeta = 1.000
+    """
     M, Kp = _positive("M", M), _positive("Kp", Kp)
     b = _non_negative("b", b)
     return SecondOrder(np.sqrt(Kp / M), (b + float(Kd)) / (2 * np.sqrt(Kp * M)))
@@ -81,6 +94,11 @@ def damping_for_overshoot(percent_overshoot: float) -> float:
     r"""Damping ratio giving a step overshoot of :math:`\%OS`:
 
     .. math:: \zeta = \frac{-\ln(\%OS/100)}{\sqrt{\pi^2 + \ln^2(\%OS/100)}}
+
+    Example: 10 % overshoot, the lab's Method 2 specification.
+
+    >>> print(f"{damping_for_overshoot(10.0):.4f}")
+    0.5912
     """
     os = float(percent_overshoot)
     if not 0 < os < 100:
@@ -104,6 +122,12 @@ def spec_gains(M: float, b: float, percent_overshoot: float, settling_time: floa
 
     :math:`\zeta` from :func:`damping_for_overshoot`, :math:`\omega_n = 4/(\zeta t_s)`, then
     :func:`pd_gains`. Returns the gains and the (wn, zeta) they were designed for.
+
+    Example: the lab's Method 2, 10 % overshoot and a 2 s settling time on its joint.
+
+    >>> (Kp, Kd), (wn, zeta) = spec_gains(0.5, 0.1, percent_overshoot=10.0, settling_time=2.0)
+    >>> print(f"Kp = {Kp:.3f} N·m/rad, Kd = {Kd:.3f} N·m·s/rad (wn = {wn:.3f} rad/s, zeta = {zeta:.3f})")
+    Kp = 5.723 N·m/rad, Kd = 1.900 N·m·s/rad (wn = 3.383 rad/s, zeta = 0.591)
     """
     zeta = damping_for_overshoot(percent_overshoot)
     wn = frequency_for_settling(zeta, settling_time)
@@ -133,6 +157,12 @@ def exact_settling_frequency(zeta: float, settling_time: float, band: float = 0.
 
 def ct_gains(wn: float, zeta: float) -> Gains:
     r"""Computed-torque gains for the unit-mass error dynamics :math:`\ddot e + K_d\dot e + K_p e = 0`:
-    :math:`K_p = \omega_n^2`, :math:`K_d = 2\zeta\omega_n`."""
+    :math:`K_p = \omega_n^2`, :math:`K_d = 2\zeta\omega_n`.
+
+    Example: the Problems' design, :math:`\omega_n = 10` rad/s, :math:`\zeta = 0.9`.
+
+    >>> ct_gains(10.0, 0.9)
+    Gains(Kp=100.0, Kd=18.0)
+    """
     wn, zeta = _positive("wn", wn), _non_negative("zeta", zeta)
     return Gains(wn**2, 2 * zeta * wn)

@@ -29,6 +29,12 @@ def versine(t, c: float, amplitude: float = np.pi / 4) -> Reference:
     .. math:: \theta_d = c - A\cos t,\quad \dot\theta_d = A\sin t,\quad \ddot\theta_d = A\cos t
 
     with :math:`A = \pi/4`: it starts and ends at rest, :math:`2A` apart.
+
+    Example: about :math:`c = 0`, from -45° to +45°, at rest at both ends.
+
+    >>> ref = versine(np.array([0.0, np.pi]), c=0.0)
+    >>> print(np.degrees(ref.pos), np.round(ref.vel, 12))
+    [-45.  45.] [0. 0.]
     """
     t = np.asarray(t, dtype=float)
     return Reference(c - amplitude * np.cos(t), amplitude * np.sin(t), amplitude * np.cos(t))
@@ -65,6 +71,13 @@ def circle_2d(t, center, radius: float, period: float) -> Reference:
 
     Velocity :math:`\rho\Omega(-\sin, \cos)`, acceleration :math:`-\rho\Omega^2(\cos, \sin)`.
     Arrays of ``t`` give arrays of shape ``(len(t), 2)``.
+
+    Example: a circle of radius 0.15 m about (0.5, 0.2) m, one turn in 6 s, starts at its
+    point of largest :math:`x`, moving at :math:`2\pi\rho/T` = 0.157 m/s.
+
+    >>> ref = circle_2d(0.0, center=(0.5, 0.2), radius=0.15, period=6.0)
+    >>> print(ref.pos, f"{np.linalg.norm(ref.vel):.4f} m/s")
+    [0.65 0.2 ] 0.1571 m/s
     """
     t = np.asarray(t, dtype=float)
     w = 2 * np.pi / period

@@ -79,7 +79,16 @@ def _q(q, name="q") -> np.ndarray:
 
 def forward_kinematics(q, arm: Planar2R = LAB_ARM) -> np.ndarray:
     r"""End-effector position, shape ``(..., 2)``:
-    :math:`x = (l_1 c_1 + l_2 c_{12},\; l_1 s_1 + l_2 s_{12})`."""
+    :math:`x = (l_1 c_1 + l_2 c_{12},\; l_1 s_1 + l_2 s_{12})`.
+
+    Example: the lab's arm stretched along :math:`x`, then turned by 90° with the
+    elbow bent back by 90°.
+
+    >>> print(forward_kinematics([0.0, 0.0]))
+    [0.9 0. ]
+    >>> print(forward_kinematics([np.pi / 2, -np.pi / 2]))
+    [0.4 0.5]
+    """
     q = _q(q)
     q1, q12 = q[..., 0], q[..., 0] + q[..., 1]
     return np.stack(
@@ -106,6 +115,12 @@ def jacobian(q, arm: Planar2R = LAB_ARM) -> np.ndarray:
             \phantom{-}l_1 c_1 + l_2 c_{12} & \phantom{-}l_2 c_{12}
         \end{bmatrix},
         \qquad \det J = l_1 l_2 \sin q_2.
+
+    Example: the determinant against :math:`l_1 l_2 \sin q_2`.
+
+    >>> q = np.array([0.3, 1.0])
+    >>> print(f"{np.linalg.det(jacobian(q)):.6f} {0.5 * 0.4 * np.sin(1.0):.6f}")
+    0.168294 0.168294
     """
     q = _q(q)
     q1, q12 = q[..., 0], q[..., 0] + q[..., 1]
@@ -166,6 +181,17 @@ def inverse_kinematics(
             ``clip=True`` it is moved radially onto the nearest workspace boundary
             instead (``|D|`` clipped to 1, as the lab's code does silently), and a
             ``RuntimeWarning`` says so.
+
+    Example: both branches reach the point (0.5, 0.2) m, and forward kinematics
+    takes each back there.
+
+    >>> x = np.array([0.5, 0.2])
+    >>> q_up, q_down = inverse_kinematics(x), inverse_kinematics(x, branch="down")
+    >>> print(np.round(q_up, 4), np.round(q_down, 4))
+    [-0.407   1.8755] [ 1.168  -1.8755]
+    >>> back = forward_kinematics(np.stack([q_up, q_down]))
+    >>> print(np.allclose(back, x))
+    True
     """
     if branch not in BRANCHES:
         raise ValueError(f"branch must be one of {BRANCHES}, got {branch!r}")
