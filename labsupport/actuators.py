@@ -78,6 +78,16 @@ def servo_ctrl(servo: Servo, q, qdot, tau, out: np.ndarray | None = None) -> np.
 
     Away from the clamps the servo's force :math:`k_p(u - q) - k_v\dot q` is exactly ``tau``.
     Works row by row on arrays of shape ``(N, nu)``; ``out`` is an optional preallocated result.
+
+    Example: one servo without limits; the command makes it exert the 12 N·m asked for.
+
+    >>> inf = np.array([np.inf])
+    >>> servo = Servo(kp=np.array([2000.0]), kv=np.array([400.0]), force_lo=-inf, force_hi=inf,
+    ...               ctrl_lo=-inf, ctrl_hi=inf)
+    >>> q, qdot = np.array([0.3]), np.array([0.5])
+    >>> u = servo_ctrl(servo, q, qdot, tau=np.array([12.0]))
+    >>> print(u, servo_force(servo, q, qdot, u))
+    [0.406] [12.]
     """
     u = np.multiply(servo.kv, qdot, out=out)  # k_v qdot
     u += tau  # k_v qdot + tau

@@ -90,6 +90,14 @@ class SingleJoint:
             The :class:`labsupport.sim.Log` of the run, sampled at ``0, dt, 2dt, … < duration``:
             ``q`` and ``qdot`` of shape ``(N, 1)``, with the torque the controller returns at
             each sample in ``tau`` (and ``ctrl``); no site, no reference.
+
+        Example: a constant 0.1 N·m on the lab's horizontal joint. Its speed approaches
+        :math:`\tau/b` = 1 rad/s as :math:`1 - e^{-bt/M}`: 0.632 rad/s after one time constant,
+        :math:`M/b` = 5 s.
+
+        >>> log = SingleJoint().simulate(lambda t, state: 0.1, duration=5.001)
+        >>> print(f"{log.qdot[-1, 0]:.3f} rad/s at t = {log.t[-1]:.1f} s")
+        0.632 rad/s at t = 5.0 s
         """
         state0 = validate.vector("state0 (theta, theta_dot)", state0, (2,))
         duration = validate.number("duration", duration, positive=True)

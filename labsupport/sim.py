@@ -192,6 +192,17 @@ def simulate(
         SimulationDiverged: MuJoCo flagged bad positions, velocities, accelerations or controls
             (it resets the state when it does), or the state became non-finite. The error names
             the time and the last good state.
+
+    Example: the MuJoCo single joint brought to 30° by PD plus gravity compensation,
+    :math:`\tau = K_p(\theta_d - \theta) - K_d\dot\theta + h`; the log holds one row per 1 ms step.
+
+    >>> from labsupport.plants import load_model
+    >>> model, data = load_model("single_joint")
+    >>> def pd_plus_gravity(model, data):
+    ...     return 20.0 * (np.radians(30) - data.qpos) - 5.0 * data.qvel + data.qfrc_bias
+    >>> log = simulate(model, data, pd_plus_gravity, duration=3.0)
+    >>> print(log.q.shape, f"{np.degrees(log.q[-1, 0]):.3f} deg")
+    (3000, 1) 30.000 deg
     """
     dt = model.opt.timestep
     duration = validate.number("duration", duration, positive=True)

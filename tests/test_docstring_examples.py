@@ -1,8 +1,9 @@
 """The worked examples in labsupport's docstrings run and print what they say.
 
 Each concept a student meets first (gain design, references, metrics, the 2R arm's kinematics,
-MuJoCo's M, h, J and J̇q̇) carries an example with the lab's numbers, checked here with
-``doctest`` against the closed form it states: a docstring cannot drift from the code.
+MuJoCo's M, h, J and J̇q̇, the single joint's simulation, the one loop, the servo inversion)
+carries an example with the lab's numbers, checked here with ``doctest`` against the closed
+form it states: a docstring cannot drift from the code.
 """
 
 from __future__ import annotations
@@ -19,6 +20,9 @@ MODULES = {
     "labsupport.trajectories": 3,
     "labsupport.kinematics.planar_2r": 5,
     "labsupport.dynamics": 10,
+    "labsupport.plants": 2,
+    "labsupport.sim": 5,
+    "labsupport.actuators": 5,
 }
 
 
