@@ -73,6 +73,17 @@ def tracking_run(model, data, make) -> sim.Log:
     )
 
 
+def replay_controller(model, asked: sim.Log):
+    """A controller that returns the torques a run asked for, step by step: the loop's own cost
+    on the same motion, with (almost) no law."""
+    dt, tau = model.opt.timestep, asked.tau
+
+    def controller(model, data):
+        return tau[int(data.time / dt + 0.5)]
+
+    return lambda model, Kp, Kd: controller
+
+
 def controller_call(model, data, make, n: int = 20000) -> float:
     """Seconds per call of the controller alone, at one state."""
     controller = make(model, *gains.ct_gains(8.0, 1.0))
@@ -95,6 +106,8 @@ def main() -> dict:
     makers = {"OS-CT": os_ct_controller, "IK + JS-CT": ik_ct_controller}
     loops = {"bare": lambda: bare_steps(model, data, nsteps)}
     loops.update({name: (lambda make=make: tracking_run(model, data, make)) for name, make in makers.items()})
+    replay = replay_controller(model, tracking_run(model, data, os_ct_controller))
+    loops["loop alone"] = lambda: tracking_run(model, data, replay)
     times = dict.fromkeys(loops, np.inf)
     for _ in range(REPEATS):  # alternate, so that load hits all loops alike
         for name, fn in loops.items():
@@ -113,6 +126,12 @@ def main() -> dict:
             f"ratio to bare mj_step = {ratio:.2f}  ({verdict}); controller alone "
             f"{1e6 * controller_call(model, data, make):.1f} us/call"
         )
+    rate = nsteps / times["loop alone"]
+    results["loop alone ratio"] = rate / bare
+    print(
+        f"  loop alone (OS-CT's torques replayed): {rate:10.0f} steps/s  ({1e6 / rate:5.1f} us/step)  "
+        f"ratio to bare mj_step = {rate / bare:.2f}: the ceiling for any law in this loop"
+    )
     return results
 
 
