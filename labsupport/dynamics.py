@@ -184,6 +184,8 @@ def jacobian_solve(J: np.ndarray, rhs: np.ndarray, min_pivot: float = 1e-10) -> 
     JJt, z = _work("JJt", (d, d)), _work("z", (d,))
     mujoco.mju_mulMatMatT(JJt, J, J)
     if mujoco.mju_cholFactor(JJt, min_pivot) < d:
+        if not np.isfinite(J).all():
+            raise ValueError(f"the Jacobian has entries that are not finite (NaN or inf): {J.tolist()}")
         raise ValueError(
             "the Jacobian is singular at this configuration (the arm is stretched out or "
             "folded): no joint acceleration gives the task acceleration asked for; keep the "
@@ -210,14 +212,19 @@ def task_space_inertia(model: mujoco.MjModel, data: mujoco.MjData, jac: np.ndarr
 
 
 def site_id(model: mujoco.MjModel, site: int | str) -> int:
-    """The id of a site given by name (or already by id); ``ValueError`` naming the model's
-    sites if there is none of that name."""
-    if type(site) is int:
+    """The id of a site given by name, or already by id; ``ValueError`` naming the model's sites
+    for a name it does not have or an id out of its range (MuJoCo itself would read past its
+    arrays)."""
+    if type(site) is int and 0 <= site < model.nsite:
         return site
+    names = [model.site(i).name for i in range(model.nsite)]
     if isinstance(site, str):
         site_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
         if site_id < 0:
-            names = [model.site(i).name for i in range(model.nsite)]
             raise ValueError(f"site {site!r} is not in the model; its sites are {names}")
         return site_id
-    return int(site)
+    if isinstance(site, (int, np.integer)) and not isinstance(site, bool) and 0 <= site < model.nsite:
+        return int(site)
+    raise ValueError(
+        f"site must be a site's name or an id from 0 to {model.nsite - 1}, got {site!r}; the model's sites are {names}"
+    )

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from labsupport import validate
+from labsupport import dynamics, validate
 from labsupport.trajectories import Reference
 
 Controller = Callable[[mujoco.MjModel, mujoco.MjData], np.ndarray]
@@ -217,12 +217,7 @@ def simulate(
             "cannot split an RK4 step; use the default stepping with RK4"
         )
     reset(model, data, q0, qdot0, keyframe=keyframe, forward=not lab_timing)
-    site_id = -1
-    if site is not None:
-        site_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
-        if site_id < 0:
-            names = [model.site(i).name for i in range(model.nsite)]
-            raise ValueError(f"site {site!r} is not in the model; its sites are {names}")
+    site_id = -1 if site is None else dynamics.site_id(model, site)
     nu = model.nu
     limit = None
     if torque_limit is not None:
@@ -363,9 +358,7 @@ def site_poses(model: mujoco.MjModel, q: np.ndarray, site: str | int) -> tuple[n
     configurations ``q`` (N, nq), by forward kinematics on a scratch ``MjData`` (after
     ``mj_step`` the kinematics in ``data`` belong to the integrator's last evaluation, so
     logged poses are recomputed with this)."""
-    site_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site) if isinstance(site, str) else int(site)
-    if site_id < 0:
-        raise ValueError(f"site {site!r} is not in the model")
+    site_id = dynamics.site_id(model, site)
     scratch = mujoco.MjData(model)
     qpos, xpos, xmat = scratch.qpos, scratch.site_xpos[site_id], scratch.site_xmat[site_id]
     pos, rot = np.empty((len(q), 3)), np.empty((len(q), 9))

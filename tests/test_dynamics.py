@@ -161,6 +161,31 @@ def test_unknown_site_is_named(arm):
         dynamics.site_jacobian(model, data, "hand")
 
 
+@pytest.mark.parametrize("site", [1, -1, 7, np.int64(3), 0.0, True, None])
+def test_a_site_id_out_of_range_is_refused(arm, site):
+    """An id MuJoCo does not have would make it read past its arrays and return garbage."""
+    model, data = arm
+    assert model.nsite == 1
+    with pytest.raises(ValueError, match=r"id from 0 to 0.*\['tip'\]"):
+        dynamics.site_jacobian(model, data, site)
+    with pytest.raises(ValueError, match="id from 0 to 0"):
+        dynamics.site_jdot_qdot(model, data, site)
+
+
+def test_a_site_id_in_range_is_taken_as_is(arm):
+    model, data = arm
+    by_name = dynamics.site_jacobian(model, data, "tip")
+    for site in (0, np.int32(0)):
+        np.testing.assert_array_equal(dynamics.site_jacobian(model, data, site), by_name)
+
+
+def test_jacobian_solve_names_a_jacobian_that_is_not_finite():
+    J = np.eye(3)
+    J[1, 2] = np.nan
+    with pytest.raises(ValueError, match="not finite"):
+        dynamics.jacobian_solve(J, np.ones(3))
+
+
 def test_jacobian_solve_is_the_inverse_and_refuses_a_singular_jacobian():
     rng = np.random.default_rng(3)
     for _ in range(20):

@@ -121,8 +121,13 @@ def test_bad_inputs_raise_value_errors(arm):
         sim.simulate(model, data, constant([0.0, 0.0, 0.0]), 0.01)
     with pytest.raises(ValueError, match="q0"):
         sim.simulate(model, data, constant([0.0, 0.0]), 0.01, q0=[0.0])
-    with pytest.raises(ValueError, match="site"):
+    with pytest.raises(ValueError, match=r"site 'hand' is not in the model; its sites are \['end_effector'\]"):
         sim.simulate(model, data, constant([0.0, 0.0]), 0.01, site="hand")
+    for site in (1, -1):  # ids MuJoCo does not have: refused, never read past its arrays
+        with pytest.raises(ValueError, match="id from 0 to 0"):
+            sim.simulate(model, data, constant([0.0, 0.0]), 0.01, site=site)
+        with pytest.raises(ValueError, match="id from 0 to 0"):
+            sim.site_positions(model, np.zeros((3, 2)), site)
 
 
 def arm_with_keyframe():
