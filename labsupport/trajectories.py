@@ -80,9 +80,10 @@ def circle_2d(t, center, radius: float, period: float) -> Reference:
     [0.65 0.2 ] 0.1571 m/s
     """
     t = np.asarray(t, dtype=float)
-    w = 2 * np.pi / period
+    center = validate.vector("center", center, (2,))
+    radius = validate.number("radius", radius, positive=True)
+    w = 2 * np.pi / validate.number("period", period, positive=True)
     c, s = np.cos(w * t), np.sin(w * t)
-    center = np.asarray(center, dtype=float)
     pos = center + radius * np.stack([c, s], axis=-1)
     vel = radius * w * np.stack([-s, c], axis=-1)
     acc = -radius * w**2 * np.stack([c, s], axis=-1)
@@ -96,10 +97,11 @@ def circle_3d(t, center, radius: float, normal, frequency: float) -> Reference:
     derivatives. Arrays of ``t`` give arrays of shape ``(len(t), 3)``.
     """
     t = np.asarray(t, dtype=float)
+    center = validate.vector("center", center, (3,))
+    radius = validate.number("radius", radius, positive=True)
     u, v = circle_basis(normal)
-    w = 2 * np.pi * frequency
+    w = 2 * np.pi * validate.number("frequency", frequency, positive=True)
     c, s = np.cos(w * t)[..., None], np.sin(w * t)[..., None]
-    center = np.asarray(center, dtype=float)
     pos = center + radius * (c * u + s * v)
     vel = radius * w * (-s * u + c * v)
     acc = -radius * w**2 * (c * u + s * v)

@@ -133,6 +133,13 @@ def test_bad_arguments():
         k2.forward_kinematics([0.1, 0.2, 0.3])
     with pytest.raises(ValueError, match="l2"):
         k2.Planar2R(0.5, -0.4)
+    # a NaN target used to come back as NaN angles, silently
+    with pytest.raises(ValueError, match="x has entries that are not finite"):
+        k2.inverse_kinematics([np.nan, 0.2])
+    with pytest.raises(ValueError, match="qdot has entries that are not finite"):
+        k2.jdot_qdot([0.1, 0.2], [np.inf, 0.0])
+    with pytest.raises(ValueError, match="q must be numbers"):
+        k2.jacobian("ab")
 
 
 def test_joint_reference_reproduces_the_cartesian_one():

@@ -68,12 +68,19 @@ LAB_ARM = Planar2R()
 
 
 def _q(q, name="q") -> np.ndarray:
-    q = np.asarray(q, dtype=float)
+    """``q`` (or a position ``x``) as a float array of shape ``(..., 2)`` with finite
+    entries, or a ``ValueError`` naming it."""
+    try:
+        q = np.asarray(q, dtype=float)
+    except (TypeError, ValueError):
+        message = f"{name} must be numbers of shape (..., 2), got {q!r}"
+        raise ValueError(message) from None
     if q.shape[-1:] != (2,):
         raise ValueError(
-            f"{name} must have 2 components on its last axis (q1, q2), "
-            f"got shape {q.shape}"
+            f"{name} must have 2 components on its last axis, got shape {q.shape}"
         )
+    if not np.isfinite(q).all():
+        raise ValueError(f"{name} has entries that are not finite (NaN or inf)")
     return q
 
 

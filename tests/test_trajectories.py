@@ -1,0 +1,51 @@
+"""labsupport.trajectories: each reference's velocity and acceleration are the derivatives of its
+position (central differences), the circles lie where they say, and bad arguments are named."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from labsupport import trajectories as tr
+
+REFERENCES = {
+    "versine": lambda t: tr.versine(t, c=0.3),
+    "sinusoid": lambda t: tr.sinusoid(t, amplitude=0.7, omega=2.0),
+    "circle_2d": lambda t: tr.circle_2d(t, center=(0.5, 0.2), radius=0.15, period=6.0),
+    "circle_3d": lambda t: tr.circle_3d(t, center=(1.0, 0.0, 1.5), radius=0.3, normal=(1, 2, 3), frequency=0.2),
+}
+
+
+@pytest.mark.parametrize("name", REFERENCES)
+def test_velocity_and_acceleration_are_the_derivatives(name):
+    reference, h = REFERENCES[name], 1e-5
+    for t in np.linspace(0.1, 3.0, 7):
+        ref, before, after = reference(t), reference(t - h), reference(t + h)
+        np.testing.assert_allclose((after.pos - before.pos) / (2 * h), ref.vel, atol=1e-8)
+        np.testing.assert_allclose((after.vel - before.vel) / (2 * h), ref.acc, atol=1e-7)
+
+
+def test_circle_3d_stays_on_its_circle_in_its_plane():
+    center, normal = np.array([1.0, 0.0, 1.5]), np.array([1.0, 2.0, 3.0])
+    ref = tr.circle_3d(np.linspace(0, 5, 101), center, 0.3, normal, 0.2)
+    np.testing.assert_allclose(np.linalg.norm(ref.pos - center, axis=1), 0.3, rtol=1e-12)
+    np.testing.assert_allclose((ref.pos - center) @ normal, 0.0, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(ref.vel, axis=1), 0.3 * 2 * np.pi * 0.2, rtol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda: tr.circle_2d(0.0, (0.5, 0.2, 0.0), 0.15, 6.0), r"center must have shape \(2,\)"),
+        (lambda: tr.circle_2d(0.0, (0.5, 0.2), -0.15, 6.0), "radius must be positive"),
+        (lambda: tr.circle_2d(0.0, (0.5, 0.2), 0.15, 0.0), "period must be positive"),
+        (lambda: tr.circle_2d(0.0, (0.5, np.nan), 0.15, 6.0), "center must be finite"),
+        (lambda: tr.circle_3d(0.0, (1.0, 0.0), 0.3, (0, 0, 1), 0.2), r"center must have shape \(3,\)"),
+        (lambda: tr.circle_3d(0.0, (1.0, 0.0, 1.5), 0.0, (0, 0, 1), 0.2), "radius must be positive"),
+        (lambda: tr.circle_3d(0.0, (1.0, 0.0, 1.5), 0.3, (0, 0, 0), 0.2), "normal must be a non-zero"),
+        (lambda: tr.circle_3d(0.0, (1.0, 0.0, 1.5), 0.3, (0, 0, 1), np.inf), "frequency must be finite"),
+    ],
+)
+def test_bad_circle_arguments_are_named(call, message):
+    with pytest.raises(ValueError, match=message):
+        call()
