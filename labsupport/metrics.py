@@ -9,9 +9,20 @@ import numpy as np
 from scipy.integrate import cumulative_trapezoid
 
 
+def _samples(error) -> np.ndarray:
+    """``error`` as a float array with at least one sample, or a ``ValueError``."""
+    error = np.asarray(error, dtype=float)
+    if error.size == 0:
+        raise ValueError(
+            f"no samples to take the RMS of (an empty array of shape {error.shape}); with "
+            "after=..., check that the run lasts beyond it"
+        )
+    return error
+
+
 def rms(error, axis=0):
     r"""Root mean square :math:`\sqrt{\tfrac1N\sum_k e_k^2}` along ``axis`` (per component)."""
-    error = np.asarray(error, dtype=float)
+    error = _samples(error)
     return np.sqrt(np.mean(error**2, axis=axis))
 
 
@@ -23,7 +34,7 @@ def rms_norm(error):
     >>> rms_norm([[0.003, 0.004], [0.0, -0.005]])
     0.005
     """
-    error = np.asarray(error, dtype=float)
+    error = _samples(error)
     return float(np.sqrt(np.mean(np.sum(error**2, axis=-1))))
 
 

@@ -135,6 +135,17 @@ def test_cumulative_effort_of_constant_torque():
     assert metrics.cumulative_effort(t, np.full_like(t, 3.0))[-1] == pytest.approx(18.0)
 
 
+def test_rms_of_nothing_is_refused_with_a_reason():
+    """An empty window (``after`` past the run's end) used to give NaN and NumPy's "Mean of empty
+    slice" warning; now the reason is named."""
+    np.testing.assert_allclose(metrics.rms([3.0, -3.0]), 3.0)
+    for empty in (np.zeros(0), np.zeros((0, 3))):
+        with pytest.raises(ValueError, match="no samples"):
+            metrics.rms(empty)
+        with pytest.raises(ValueError, match="no samples"):
+            metrics.rms_norm(empty)
+
+
 @pytest.mark.parametrize(
     "kwargs,word", [({"M": 0.0}, "M"), ({"M": -1.0}, "M"), ({"b": -0.1}, "b"), ({"m": float("nan")}, "m")]
 )
