@@ -246,7 +246,10 @@ def simulate(
     for k in range(nsteps):
         if split_step:
             step1(model, data)
-        tau = controller(model, data)
+        try:
+            tau = controller(model, data)
+        except ValueError as err:
+            raise _controller_failed(err, model, data) from err
         if type(tau) is not np.ndarray or tau.shape != (nu,):
             tau = _as_torque(tau, nu)
         if limit is not None:
@@ -291,6 +294,18 @@ def simulate(
     else:
         ref = err = np.empty((nsteps, 0))
     return Log(t, q, qdot, tau_log, ctrl_log, ee, ee_rot, ref, err)
+
+
+def _controller_failed(err: ValueError, model: mujoco.MjModel, data: mujoco.MjData) -> ValueError:
+    """The controller's ``ValueError`` with the time it happened at; for a shape mismatch (a
+    NumPy broadcast error from inside a law) also the sizes the model's state has."""
+    message = f"the controller raised at t = {data.time:.4f} s: {str(err).rstrip()}"
+    if "shape" in message:
+        message += (
+            f". The model's state has nq = {model.nq}, nv = {model.nv} and nu = {model.nu}: check that "
+            "the references and gains given to the law have these sizes"
+        )
+    return ValueError(message)
 
 
 def _as_torque(tau, nu: int) -> np.ndarray:

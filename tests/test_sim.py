@@ -7,6 +7,7 @@ import pytest
 
 import labsupport  # noqa: F401
 from labsupport import sim, validate
+from labsupport.controllers.joint_space import pd_joint_torque
 from labsupport.dynamics import mass_matrix
 from labsupport.plants import load_model, model_path
 from labsupport.trajectories import Reference, circle_2d, sample
@@ -128,6 +129,31 @@ def test_bad_inputs_raise_value_errors(arm):
             sim.simulate(model, data, constant([0.0, 0.0]), 0.01, site=site)
         with pytest.raises(ValueError, match="id from 0 to 0"):
             sim.site_positions(model, np.zeros((3, 2)), site)
+
+
+def test_a_law_given_arrays_of_the_wrong_size_is_told_the_model_sizes(arm):
+    """A reference of the wrong size makes NumPy fail inside the law; the loop says when, and
+    which sizes the model's state has."""
+    model, data = arm
+
+    def controller(model, data):
+        return pd_joint_torque(model, data, np.zeros(3), np.zeros(2), 10.0, 1.0)
+
+    with pytest.raises(ValueError, match=r"at t = 0\.0000 s: operands .*\(3,\).*nq = 2, nv = 2 and nu = 2") as info:
+        sim.simulate(model, data, controller, 0.01)
+    assert "broadcast" in str(info.value.__cause__)
+
+
+def test_a_law_error_is_passed_on_with_its_time(arm):
+    model, data = arm
+
+    def controller(model, data):
+        if data.time > 0.0051:
+            raise ValueError("the Jacobian is singular at this configuration")
+        return np.zeros(2)
+
+    with pytest.raises(ValueError, match=r"at t = 0\.0060 s: the Jacobian is singular at this configuration$"):
+        sim.simulate(model, data, controller, 0.1)
 
 
 def arm_with_keyframe():
