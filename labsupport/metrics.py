@@ -137,7 +137,12 @@ def rotation_error(xmat, quat_d, out=None, work=None) -> np.ndarray:
     quat, quat_d_inv = (np.empty(4), np.empty(4)) if work is None else work
     out = np.empty(3) if out is None else out
     mujoco.mju_mat2Quat(quat, np.asarray(xmat, dtype=float).reshape(9))  # q of R
-    mujoco.mju_negQuat(quat_d_inv, quat_d)  # q_d^-1
+    try:
+        mujoco.mju_negQuat(quat_d_inv, quat_d)  # q_d^-1
+    except TypeError:
+        raise ValueError(f"quat_d must be a quaternion (w, x, y, z) of 4 floats, got {quat_d!r}") from None
+    if abs(mujoco.mju_normalize4(quat_d_inv) - 1.0) > 1e-6:  # its norm
+        raise ValueError(f"quat_d must be a unit quaternion (w, x, y, z), got {quat_d!r}")
     mujoco.mju_mulQuat(quat, quat, quat_d_inv)  # q q_d^-1
     mujoco.mju_quat2Vel(out, quat, 1.0)  # its rotation vector
     return out

@@ -308,6 +308,36 @@ def test_tracking_law_is_its_formula(ur, circle):
         np.testing.assert_allclose(tau, expected, rtol=1e-7, atol=1e-7)
 
 
+def test_laws_take_the_site_by_name_or_id(ur, circle):
+    """A student passes ``"attachment_site"`` as readily as its id; both give the same torque (a
+    name used to fail with NumPy's IndexError inside pose_error)."""
+    model, _ = ur
+    data = mujoco.MjData(model)
+    _random_state(model, data, np.random.default_rng(6))
+    dt_kv = implicit_damping(Servo.from_model(model), model.opt.timestep)
+    ref = circle.at(0.3)
+    torques = {}
+    for site in (ur5e.SITE, model.site(ur5e.SITE).id):
+        arrays = PoseArrays.for_model(model)
+        lab = lab_torque(model, data, site, ref.pos, QUAT_D, LAB_GAINS, arrays).copy()
+        track = tracking_torque(model, data, site, *ref, QUAT_D, LAB_GAINS, dt_kv, arrays).copy()
+        torques[type(site)] = lab, track
+    np.testing.assert_array_equal(torques[str][0], torques[int][0])
+    np.testing.assert_array_equal(torques[str][1], torques[int][1])
+
+
+@pytest.mark.parametrize(
+    ("quat_d", "message"),
+    [((0.0, 1.0, 0.0), "of 4 floats"), ((0.0, 0.0, 0.0, 0.0), "unit quaternion"), ((0.0, 2.0, 0.0, 0.0), "unit")],
+)
+def test_a_target_orientation_that_is_no_unit_quaternion_is_named(ur, circle, quat_d, message):
+    """Three numbers used to fail inside MuJoCo's bindings, and a zero quaternion gave a torque."""
+    model, data = ur
+    arrays = PoseArrays.for_model(model)
+    with pytest.raises(ValueError, match=f"quat_d must be a .*{message}"):
+        lab_torque(model, data, ur5e.SITE, circle.pos[0], quat_d, LAB_GAINS, arrays)
+
+
 def test_tracking_law_gives_the_asked_task_acceleration_through_the_implicit_step(ur):
     """After one implicitfast step the site accelerates by J qdd + Jdot qdot = xddot_d - Kd(.) - Kp e."""
     model, _ = ur

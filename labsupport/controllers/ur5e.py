@@ -27,6 +27,7 @@ from labsupport import validate
 from labsupport.dynamics import (
     jacobian_solve,
     mass_matrix,
+    site_id,
     site_jacobian,
     site_jdot_qdot,
     solve_mass,
@@ -125,7 +126,7 @@ def pose_error(
 def lab_torque(
     model: mujoco.MjModel,
     data: mujoco.MjData,
-    site: int,
+    site: int | str,
     x_d,
     quat_d,
     gains: PoseGains,
@@ -139,12 +140,13 @@ def lab_torque(
         \Lambda = (J M^{-1} J^\top)^{+}
 
     Its damping acts on the site's absolute velocity :math:`J\dot q`, and it has no
-    feedforward, so on a moving target it drags behind. ``site`` is the site's id;
-    the target is the position ``x_d`` (3,) and the orientation ``quat_d`` (w, x, y,
-    z). As in the lab, :math:`\Lambda` is a pseudo-inverse: the inverse wherever
-    :math:`J` has full rank, and zero on the all-zero data MuJoCo holds before its
-    first evaluation (no torque then).
+    feedforward, so on a moving target it drags behind. ``site`` is the site's name
+    or id; the target is the position ``x_d`` (3,) and the orientation ``quat_d``
+    (w, x, y, z). As in the lab, :math:`\Lambda` is a pseudo-inverse: the inverse
+    wherever :math:`J` has full rank, and zero on the all-zero data MuJoCo holds
+    before its first evaluation (no torque then).
     """
+    site = site_id(model, site)
     J = site_jacobian(model, data, site, out=arrays.J)
     e = pose_error(data, site, x_d, quat_d, out=arrays.e)
     Lam = np.linalg.pinv(J @ solve_mass(model, data, J).T)
@@ -155,7 +157,7 @@ def lab_torque(
 def tracking_torque(
     model: mujoco.MjModel,
     data: mujoco.MjData,
-    site: int,
+    site: int | str,
     x_d,
     xdot_d,
     xddot_d,
@@ -186,6 +188,7 @@ def tracking_torque(
     the servo compensation :math:`\Delta t\,K_v M^{-1}(\tau_r - h)` is
     :math:`\Delta t\,K_v\,\ddot q^*`. A singular :math:`J` raises ``ValueError``.
     """
+    site = site_id(model, site)
     J = site_jacobian(model, data, site, out=arrays.J)
     e = pose_error(data, site, x_d, quat_d, out=arrays.e, work=arrays.quats)
     arrays.xdot_d[:3], arrays.xddot_d[:3] = xdot_d, xddot_d
