@@ -171,7 +171,8 @@ def jacobian_solve(J: np.ndarray, rhs: np.ndarray, min_pivot: float = 1e-10) -> 
     Computed as :math:`x = J^\top (J J^\top)^{-1} y` (equal to :math:`J^{-1}y` when :math:`J` is
     square and invertible) with MuJoCo's Cholesky factorisation of :math:`J J^\top`, whose rank
     tells a singular :math:`J` apart: a pivot below ``min_pivot`` means the arm is stretched
-    out or folded, where no joint motion produces some task motion.
+    out or folded, where no joint motion produces some task motion. A :math:`J` with NaN or inf
+    entries raises ``ValueError`` too.
     """
     J = np.ascontiguousarray(J, dtype=float)
     rhs = np.ascontiguousarray(rhs, dtype=float)
@@ -181,6 +182,8 @@ def jacobian_solve(J: np.ndarray, rhs: np.ndarray, min_pivot: float = 1e-10) -> 
             f"jacobian_solve needs a (d, nv) Jacobian with d <= nv and a (d,) right-hand side, "
             f"got J of shape {J.shape} and rhs of shape {rhs.shape}"
         )
+    if not np.isfinite(J).all():  # MuJoCo's factorisation does not tell NaN apart on every version
+        raise ValueError(f"the Jacobian has entries that are not finite (NaN or inf): {J.tolist()}")
     JJt, z = _work("JJt", (d, d)), _work("z", (d,))
     mujoco.mju_mulMatMatT(JJt, J, J)
     if mujoco.mju_cholFactor(JJt, min_pivot) < d:
