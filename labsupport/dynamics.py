@@ -220,14 +220,18 @@ def site_id(model: mujoco.MjModel, site: int | str) -> int:
     arrays)."""
     if type(site) is int and 0 <= site < model.nsite:
         return site
-    names = [model.site(i).name for i in range(model.nsite)]
     if isinstance(site, str):
         site_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
         if site_id < 0:
-            raise ValueError(f"site {site!r} is not in the model; its sites are {names}")
+            raise ValueError(f"site {site!r} is not in the model; its sites are {_site_names(model)}")
         return site_id
     if isinstance(site, (int, np.integer)) and not isinstance(site, bool) and 0 <= site < model.nsite:
         return int(site)
     raise ValueError(
-        f"site must be a site's name or an id from 0 to {model.nsite - 1}, got {site!r}; the model's sites are {names}"
+        f"site must be a site's name or an id from 0 to {model.nsite - 1}, got {site!r}; "
+        f"the model's sites are {_site_names(model)}"
     )
+
+
+def _site_names(model: mujoco.MjModel) -> list[str]:
+    return [model.site(i).name for i in range(model.nsite)]
