@@ -172,7 +172,9 @@ def jacobian_solve(J: np.ndarray, rhs: np.ndarray, min_pivot: float = 1e-10) -> 
     square and invertible) with MuJoCo's Cholesky factorisation of :math:`J J^\top`, whose rank
     tells a singular :math:`J` apart: a pivot below ``min_pivot`` means the arm is stretched
     out or folded, where no joint motion produces some task motion. A :math:`J` with NaN or inf
-    entries raises ``ValueError`` too.
+    entries is named as such where MuJoCo's factorisation reports them as rank loss (MuJoCo 4);
+    MuJoCo 3.3.6 returns NaN instead, on which the loop then stops. The check is not made up
+    front: in the control loop it would cost more than all the rest of this function's checks.
     """
     J = np.ascontiguousarray(J, dtype=float)
     rhs = np.ascontiguousarray(rhs, dtype=float)
@@ -182,8 +184,6 @@ def jacobian_solve(J: np.ndarray, rhs: np.ndarray, min_pivot: float = 1e-10) -> 
             f"jacobian_solve needs a (d, nv) Jacobian with d <= nv and a (d,) right-hand side, "
             f"got J of shape {J.shape} and rhs of shape {rhs.shape}"
         )
-    if not np.isfinite(J).all():  # MuJoCo's factorisation does not tell NaN apart on every version
-        raise ValueError(f"the Jacobian has entries that are not finite (NaN or inf): {J.tolist()}")
     JJt, z = _work("JJt", (d, d)), _work("z", (d,))
     mujoco.mju_mulMatMatT(JJt, J, J)
     if mujoco.mju_cholFactor(JJt, min_pivot) < d:
