@@ -218,7 +218,7 @@ def site_id(model: mujoco.MjModel, site: int | str) -> int:
     """The id of a site given by name, or already by id; ``ValueError`` naming the model's sites
     for a name it does not have or an id out of its range (MuJoCo itself would read past its
     arrays)."""
-    if type(site) is int and 0 <= site < model.nsite:
+    if type(site) is int and 0 <= site < model.nsite:  # the laws' case, every step: first and cheap
         return site
     if isinstance(site, str):
         site_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
