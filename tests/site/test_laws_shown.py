@@ -6,7 +6,7 @@ with that function's ``def``. The code comes from the package itself, so it is c
 ``inspect.getsource`` of the installed function: page and package cannot disagree.
 
 Every notebook page also reads without scrolling sideways at common window widths: the laws,
-the unfolded code cells and the printouts.
+the unfolded code cells and the printouts; and so do the display equations of every page.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import re
 
 import pytest
 from bs4 import BeautifulSoup
-from sitetools import ROOT, require_site
+from sitetools import ROOT, VIEWPORT, require_site, toc_pages
 
 TASKS = ["task1_single_joint", "task2_single_joint_mujoco", "task3_planar_2r", "task4_ur5e"]
 CONTROLLERS = "labsupport.controllers"
@@ -112,3 +112,33 @@ def test_code_reads_without_scrolling_sideways(tab_page, notebook, width):
     assert not unchecked, f"{notebook}: these laws' code is not among the blocks checked: {unchecked}"
     wide = [b for b in blocks if b["scroll"] > b["width"] + 1]
     assert not wide, f"{notebook} at {width} px: code or printout scrolls sideways: {wide}"
+
+
+WIDE_MATH_JS = """async () => {
+  if (window.MathJax?.startup?.promise) await MathJax.startup.promise;
+  const shown = [...document.querySelectorAll('main mjx-container[display="true"]')];
+  return {count: shown.length,
+          cut: shown.filter(m => m.scrollWidth > m.clientWidth + 1)
+                    .map(m => (m.querySelector('mjx-assistive-mml') || m).textContent.slice(0, 60))};
+}"""
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_equations_read_without_scrolling_sideways(browser, server, width):
+    """No display equation of any page is cut off at the page's edge (MathJax then shows
+    a scroll bar inside the equation, and a reader sees half a formula). Long ones are
+    broken into lines (``gathered``/``aligned``)."""
+    context = browser.new_context(viewport={"width": width, "height": VIEWPORT["height"]})
+    wide, equations = {}, 0
+    try:
+        tab = context.new_page()
+        for page in toc_pages():
+            tab.goto(f"{server}/{page}.html", wait_until="load")
+            found = tab.evaluate(WIDE_MATH_JS)
+            equations += found["count"]
+            if found["cut"]:
+                wide[page] = found["cut"]
+    finally:
+        context.close()
+    assert equations > 50, f"found only {equations} display equations on the site's pages"
+    assert not wide, f"at {width} px these display equations scroll sideways: {wide}"
