@@ -117,9 +117,11 @@ def test_code_reads_without_scrolling_sideways(tab_page, notebook, width):
 WIDE_MATH_JS = """async () => {
   if (window.MathJax?.startup?.promise) await MathJax.startup.promise;
   const shown = [...document.querySelectorAll('main mjx-container[display="true"]')];
+  const listings = [...document.querySelectorAll('main pre')].filter(p => !p.closest('div.cell'));
+  const cut = e => e.scrollWidth > e.clientWidth + 1;
   return {count: shown.length,
-          cut: shown.filter(m => m.scrollWidth > m.clientWidth + 1)
-                    .map(m => (m.querySelector('mjx-assistive-mml') || m).textContent.slice(0, 60))};
+          cut: shown.filter(cut).map(m => (m.querySelector('mjx-assistive-mml') || m).textContent.slice(0, 60))
+               .concat(listings.filter(cut).map(p => p.textContent.slice(0, 60)))};
 }"""
 
 
@@ -127,7 +129,8 @@ WIDE_MATH_JS = """async () => {
 def test_equations_read_without_scrolling_sideways(browser, server, width):
     """No display equation of any page is cut off at the page's edge (MathJax then shows
     a scroll bar inside the equation, and a reader sees half a formula). Long ones are
-    broken into lines (``gathered``/``aligned``)."""
+    broken into lines (``gathered``/``aligned``). The same for the listings of the
+    Markdown pages (shell commands, file trees); the notebooks' cells are checked above."""
     context = browser.new_context(viewport={"width": width, "height": VIEWPORT["height"]})
     wide, equations = {}, 0
     try:
@@ -141,4 +144,4 @@ def test_equations_read_without_scrolling_sideways(browser, server, width):
     finally:
         context.close()
     assert equations > 50, f"found only {equations} display equations on the site's pages"
-    assert not wide, f"at {width} px these display equations scroll sideways: {wide}"
+    assert not wide, f"at {width} px these display equations or listings scroll sideways: {wide}"
