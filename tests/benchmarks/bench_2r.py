@@ -3,9 +3,9 @@
 Prints the controlled-step rate of :func:`labsupport.sim.simulate` running Task 3.2's laws,
 written as the notebook writes them (a small ``controller(model, data)`` closure that reads the
 sampled reference and calls the law), logging included, divided by the rate of bare
-``mj_step`` on the same model, all measured in this one run, alternating the loops and keeping
-each one's best of a few repeats, so that other load on the machine biases them alike. The aim
-is a ratio of at least 0.35.
+``mj_step`` on the same model, all measured in this one run on one core, alternating the loops
+and keeping each one's best of a few repeats, so that other load on the machine biases them
+alike (``timing.py``). The aim is a ratio of at least 0.35.
 
 Run: ``python tests/benchmarks/bench_2r.py``
 """
@@ -16,7 +16,7 @@ import time
 from functools import partial
 
 import mujoco
-import numpy as np
+from timing import best_times
 
 import labsupport  # noqa: F401  (before mujoco)
 from labsupport import gains, sim, trajectories
@@ -94,12 +94,6 @@ def controller_call(model, data, make, n: int = 20000) -> float:
     return (time.perf_counter() - t0) / n
 
 
-def _seconds(fn) -> float:
-    start = time.perf_counter()
-    fn()
-    return time.perf_counter() - start
-
-
 def main() -> dict:
     model, data = load_model("planar_2r")
     nsteps = int(round(DURATION / model.opt.timestep))
@@ -108,10 +102,7 @@ def main() -> dict:
     loops.update({name: (lambda make=make: tracking_run(model, data, make)) for name, make in makers.items()})
     replay = replay_controller(model, tracking_run(model, data, os_ct_controller))
     loops["loop alone"] = lambda: tracking_run(model, data, replay)
-    times = dict.fromkeys(loops, np.inf)
-    for _ in range(REPEATS):  # alternate, so that load hits all loops alike
-        for name, fn in loops.items():
-            times[name] = min(times[name], _seconds(fn))
+    times = best_times(loops, REPEATS)
     bare = nsteps / times["bare"]
     results = {"bare mj_step [steps/s]": bare}
     print(f"2R planar arm, {nsteps} steps of {model.opt.timestep * 1e3:.0f} ms (RK4), best of {REPEATS}")

@@ -1,21 +1,20 @@
 """Task 4 speed: the UR5e laws in the one loop against bare ``mj_step``, and the render rate.
 
-Run ``python tests/benchmarks/bench_ur5e.py``. All rates are measured in the same run,
-alternating the loops and keeping each one's best of several repeats, so that other load on
-the machine biases them as little as possible. The controllers are the Task 4 page's: a closure
-that reads the sampled circle at ``data.time`` and calls the law, run by
-:func:`labsupport.sim.simulate` with the servos as its actuation.
+Run ``python tests/benchmarks/bench_ur5e.py``. All rates are measured in the same run, on
+one core, alternating the loops and keeping each one's best of several repeats, so that other
+load on the machine biases them as little as possible (``timing.py``). The controllers are the
+Task 4 page's: a closure that reads the sampled circle at ``data.time`` and calls the law, run
+by :func:`labsupport.sim.simulate` with the servos as its actuation.
 """
 
 from __future__ import annotations
-
-import time
 
 import labsupport  # noqa: F401  (chooses the GL backend before mujoco is imported)
 
 # isort: split
 import mujoco
 import numpy as np
+from timing import best_times, seconds
 
 from labsupport import render, trajectories, ur5e
 from labsupport.actuators import Servo, implicit_damping, servo_actuation
@@ -49,12 +48,6 @@ def controllers(model, reference):
     return lab, tracking
 
 
-def _seconds(fn) -> float:
-    start = time.perf_counter()
-    fn()
-    return time.perf_counter() - start
-
-
 def main() -> dict:
     model, data = ur5e.load_ur5e()
     dt = model.opt.timestep
@@ -84,10 +77,7 @@ def main() -> dict:
         "lab": lambda: run(lab, lab_timing=True),
         "loop": lambda: run(replay, split_step=True),
     }
-    times = dict.fromkeys(loops, np.inf)
-    for _ in range(REPEATS):  # alternate, so that load hits all loops alike
-        for name, fn in loops.items():
-            times[name] = min(times[name], _seconds(fn))
+    times = best_times(loops, REPEATS)
     rates = {name: n / t for name, t in times.items()}
     ratios = {name: rates[name] / rates["bare"] for name in loops}
 
@@ -123,7 +113,7 @@ def main() -> dict:
     )
     try:
         fps = 12
-        frames_time = min(_seconds(lambda: render.render_run(model, log, fps=fps, progress=False)) for _ in range(2))
+        frames_time = min(seconds(lambda: render.render_run(model, log, fps=fps, progress=False)) for _ in range(2))
         frames = int(DURATION * fps)
         result["render_frames_per_s"] = frames / frames_time
         print(
