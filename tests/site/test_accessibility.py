@@ -3,7 +3,8 @@
 axe-core comes with ``axe-playwright-python`` (it ships ``axe.min.js``; nothing is downloaded).
 Each page is loaded once, axe runs with the WCAG 2.0/2.1 A and AA rule tags, and every
 violation is reported with the rule, its impact and the first offending elements, so the
-message says what to fix.
+message says what to fix. Reflow (1.4.10), which axe does not check, is tested on phone-sized
+windows.
 """
 
 from __future__ import annotations
@@ -43,3 +44,26 @@ def test_page_meets_wcag21_aa(browser, server, axe, page):
     dump_json(f"axe__{page.replace('/', '__')}.json", violations)
     SUMMARY.append(f"axe WCAG 2.1 AA {page}: {len(violations)} violations")
     assert not violations, f"{page}: " + " | ".join(_describe(v) for v in violations)
+
+
+@pytest.mark.parametrize("width", (320, 390))
+def test_pages_reflow_on_a_phone(browser, server, width):
+    """WCAG 2.1, 1.4.10 Reflow: at 320 CSS px (and a common phone's 390) no page is wider than
+    the window, so text never needs sideways scrolling. Code, equations, tables and videos
+    may scroll inside their own boxes (two-dimensional content), but must not widen the page:
+    a long inline file path or a heading's anchor did."""
+    context = browser.new_context(viewport={"width": width, "height": VIEWPORT["height"]})
+    wide = {}
+    try:
+        tab = context.new_page()
+        for page in toc_pages():
+            tab.goto(f"{server}/{page}.html", wait_until="load")
+            doc = tab.evaluate(
+                "async () => { if (window.MathJax?.startup?.promise) await MathJax.startup.promise;"
+                " return document.documentElement.scrollWidth; }"
+            )
+            if doc > width:
+                wide[page] = doc
+    finally:
+        context.close()
+    assert not wide, f"pages wider than a {width} px window (px): {wide}"
