@@ -164,7 +164,8 @@ def _progress_bar(total: int):
     """A tqdm bar: text in a terminal; in a notebook, a bar that is erased when done.
 
     In a Jupyter kernel tqdm writes to a display that is updated in place and emptied at the
-    end, so an executed notebook (and the book page built from it) keeps no progress output.
+    end, so an executed notebook keeps only an empty HTML output (which shows as nothing,
+    and which the book's stylesheet hides), never a progress line.
     """
     from tqdm import tqdm
 

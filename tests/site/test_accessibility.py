@@ -1,10 +1,10 @@
 """WCAG 2.1 AA on every page of the built site, checked by axe-core in a real Chromium.
 
 axe-core comes with ``axe-playwright-python`` (it ships ``axe.min.js``; nothing is downloaded).
-Each page is loaded once, axe runs with the WCAG 2.0/2.1 A and AA rule tags, and every
-violation is reported with the rule, its impact and the first offending elements, so the
-message says what to fix. Reflow (1.4.10), which axe does not check, is tested on phone-sized
-windows.
+Each page is loaded once in each colour scheme (the site follows the system's light or dark
+mode), axe runs with the WCAG 2.0/2.1 A and AA rule tags, and every violation is reported with
+the rule, its impact and the first offending elements, so the message says what to fix.
+Reflow (1.4.10), which axe does not check, is tested on phone-sized windows.
 """
 
 from __future__ import annotations
@@ -29,9 +29,11 @@ def _describe(violation: dict) -> str:
     return f"{violation['id']} [{violation.get('impact')}]: {violation['help']} at {where}{more}"
 
 
+@pytest.mark.parametrize("scheme", ["light", "dark"])
 @pytest.mark.parametrize("page", toc_pages())
-def test_page_meets_wcag21_aa(browser, server, axe, page):
-    context = browser.new_context(viewport=VIEWPORT)
+def test_page_meets_wcag21_aa(browser, server, axe, page, scheme):
+    """In the reader's colour scheme: the site follows the system's light or dark mode."""
+    context = browser.new_context(viewport=VIEWPORT, color_scheme=scheme)
     try:
         tab = context.new_page()
         tab.route("**/*", lambda route, request: route.continue_() if request.url.startswith(server) else route.abort())
@@ -41,8 +43,8 @@ def test_page_meets_wcag21_aa(browser, server, axe, page):
     finally:
         context.close()
     violations = results.response["violations"]
-    dump_json(f"axe__{page.replace('/', '__')}.json", violations)
-    SUMMARY.append(f"axe WCAG 2.1 AA {page}: {len(violations)} violations")
+    dump_json(f"axe__{page.replace('/', '__')}__{scheme}.json", violations)
+    SUMMARY.append(f"axe WCAG 2.1 AA {page} ({scheme}): {len(violations)} violations")
     assert not violations, f"{page}: " + " | ".join(_describe(v) for v in violations)
 
 
