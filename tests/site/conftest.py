@@ -1,6 +1,6 @@
 """Fixtures of the site tests (defined in sitetools.py) and the summary of the figures."""
 
-from sitetools import ARTIFACTS, SUMMARY, browser, server, site, tab_page, visit  # noqa: F401  (fixtures)
+from sitetools import ARTIFACTS, SUMMARY, browser, on_every_page, server, site, tab_page, visit  # noqa: F401  (fixtures)
 
 
 def pytest_terminal_summary(terminalreporter):

@@ -341,3 +341,29 @@ def tab_page(browser, server):
     yield open_page
     for context in contexts:
         context.close()
+
+
+#: Waits for MathJax to typeset the page (where it has formulas), then runs the function ``js``.
+_AFTER_MATHJAX = (
+    "async () => {{ if (window.MathJax?.startup?.promise) await MathJax.startup.promise; return ({js})(); }}"
+)
+
+
+@pytest.fixture()
+def on_every_page(browser, server):
+    """``on_every_page(js, width)``: ``{page: result}`` of the script ``js`` (a JavaScript
+    function) run on every page of the book, once typeset, in one window ``width`` px wide."""
+
+    def run(js: str, width: int) -> dict:
+        context = browser.new_context(viewport={"width": width, "height": VIEWPORT["height"]})
+        try:
+            tab = context.new_page()
+            results = {}
+            for page in toc_pages():
+                tab.goto(f"{server}/{page}.html", wait_until="load")
+                results[page] = tab.evaluate(_AFTER_MATHJAX.format(js=js))
+            return results
+        finally:
+            context.close()
+
+    return run

@@ -49,23 +49,11 @@ def test_page_meets_wcag21_aa(browser, server, axe, page, scheme):
 
 
 @pytest.mark.parametrize("width", (320, 390))
-def test_pages_reflow_on_a_phone(browser, server, width):
+def test_pages_reflow_on_a_phone(on_every_page, width):
     """WCAG 2.1, 1.4.10 Reflow: at 320 CSS px (and a common phone's 390) no page is wider than
     the window, so text never needs sideways scrolling. Code, equations, tables and videos
     may scroll inside their own boxes (two-dimensional content), but must not widen the page:
     a long inline file path or a heading's anchor did."""
-    context = browser.new_context(viewport={"width": width, "height": VIEWPORT["height"]})
-    wide = {}
-    try:
-        tab = context.new_page()
-        for page in toc_pages():
-            tab.goto(f"{server}/{page}.html", wait_until="load")
-            doc = tab.evaluate(
-                "async () => { if (window.MathJax?.startup?.promise) await MathJax.startup.promise;"
-                " return document.documentElement.scrollWidth; }"
-            )
-            if doc > width:
-                wide[page] = doc
-    finally:
-        context.close()
+    widths = on_every_page("() => document.documentElement.scrollWidth", width)
+    wide = {page: w for page, w in widths.items() if w > width}
     assert not wide, f"pages wider than a {width} px window (px): {wide}"

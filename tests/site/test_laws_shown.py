@@ -19,7 +19,7 @@ import re
 
 import pytest
 from bs4 import BeautifulSoup
-from sitetools import ROOT, VIEWPORT, require_site, toc_pages
+from sitetools import ROOT, require_site
 
 TASKS = ["task1_single_joint", "task2_single_joint_mujoco", "task3_planar_2r", "task4_ur5e"]
 CONTROLLERS = "labsupport.controllers"
@@ -114,8 +114,7 @@ def test_code_reads_without_scrolling_sideways(tab_page, notebook, width):
     assert not wide, f"{notebook} at {width} px: code or printout scrolls sideways: {wide}"
 
 
-WIDE_MATH_JS = """async () => {
-  if (window.MathJax?.startup?.promise) await MathJax.startup.promise;
+WIDE_MATH_JS = """() => {
   const shown = [...document.querySelectorAll('main mjx-container[display="true"]')];
   const listings = [...document.querySelectorAll('main pre')].filter(p => !p.closest('div.cell'));
   const cut = e => e.scrollWidth > e.clientWidth + 1;
@@ -126,22 +125,13 @@ WIDE_MATH_JS = """async () => {
 
 
 @pytest.mark.parametrize("width", WIDTHS)
-def test_equations_read_without_scrolling_sideways(browser, server, width):
+def test_equations_and_listings_read_without_scrolling_sideways(on_every_page, width):
     """No display equation of any page is cut off at the page's edge (MathJax then shows
     a scroll bar inside the equation, and a reader sees half a formula). Long ones are
     broken into lines (``gathered``/``aligned``). The same for the listings of the
     Markdown pages (shell commands, file trees); the notebooks' cells are checked above."""
-    context = browser.new_context(viewport={"width": width, "height": VIEWPORT["height"]})
-    wide, equations = {}, 0
-    try:
-        tab = context.new_page()
-        for page in toc_pages():
-            tab.goto(f"{server}/{page}.html", wait_until="load")
-            found = tab.evaluate(WIDE_MATH_JS)
-            equations += found["count"]
-            if found["cut"]:
-                wide[page] = found["cut"]
-    finally:
-        context.close()
+    found = on_every_page(WIDE_MATH_JS, width)
+    equations = sum(f["count"] for f in found.values())
+    wide = {page: f["cut"] for page, f in found.items() if f["cut"]}
     assert equations > 50, f"found only {equations} display equations on the site's pages"
     assert not wide, f"at {width} px these display equations or listings scroll sideways: {wide}"
