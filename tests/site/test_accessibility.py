@@ -39,6 +39,10 @@ def test_page_meets_wcag21_aa(browser, server, axe, page, scheme):
         tab.route("**/*", lambda route, request: route.continue_() if request.url.startswith(server) else route.abort())
         tab.goto(f"{server}/{page}.html", wait_until="load")
         tab.evaluate("async () => { if (window.MathJax?.startup?.promise) await MathJax.startup.promise; }")
+        # The theme applies the colour scheme by script after loading, and its buttons fade
+        # their colours over 0.15 s: axe must see the end state, not a frame of the fade.
+        tab.wait_for_function("scheme => document.documentElement.dataset.theme === scheme", arg=scheme)
+        tab.add_style_tag(content="*, *::before, *::after { transition: none !important; }")
         results = axe.run(tab, options={"runOnly": {"type": "tag", "values": WCAG_TAGS}, "resultTypes": ["violations"]})
     finally:
         context.close()
