@@ -96,44 +96,45 @@ def render_run(
     fps: float = 12,
     width: int = 320,
     height: int = 240,
-    camera: str | int = "lab",
+    camera: str | int | None = None,
     trace_step: float = 0.04,
     progress: bool = True,
-    site: str = "attachment_site",
     target_body: str = "target",
 ) -> np.ndarray:
     """Frames (F, height, width, 3) replaying a run's :class:`labsupport.sim.Log`.
 
-    Each frame shows the robot at the logged joint angles, the mocap target at the logged
-    reference ``log.ref`` (held at ``target_quat``, w x y z, when given), and the traces (every
-    ``trace_step`` seconds) of the reference (blue) and of the end effector (red) up to that
-    instant. Shadows and reflections are off: software OpenGL renders several times faster
-    without them. A progress bar (tqdm) shows while ``progress`` is true; in a notebook it is
-    erased when the video is done.
+    Each frame shows the robot at the logged joint angles and, up to that instant, the traces
+    (every ``trace_step`` seconds) of the reference (blue) and of the site the run logged
+    (red, ``log.site``). A planar reference (``log.ref`` of 2 columns) is drawn in the plane the
+    site moves in: its missing coordinates are the site's. A mocap body ``target_body``, if the
+    model has one, follows a 3-D reference, held at ``target_quat`` (w, x, y, z) when given.
+    Works for any run of :func:`labsupport.sim.simulate`; without ``site=`` there is nothing
+    to trace and only the robot is shown.
+
+    ``camera`` is a camera of the model (name or id), by default its first one, or MuJoCo's
+    free camera (-1) for a model without cameras. Shadows and reflections are off: software
+    OpenGL renders several times faster without them. A progress bar (tqdm) shows while
+    ``progress`` is true; in a notebook it is erased when the video is done.
 
     Raises:
-        ValueError: ``fps`` outside (0, 60], or a log without a 3-D reference.
+        ValueError: ``fps`` outside (0, 60], a camera the model does not have, or a reference
+            of more than 3 columns.
     """
     if not (np.isfinite(fps) and 0 < fps <= 60):
         raise ValueError(f"fps must be in (0, 60], got {fps!r}")
-    if log.ref.shape[1:] != (3,):
-        raise ValueError(
-            f"the log's reference must be 3-D positions to draw a target, got shape {log.ref.shape}; "
-            "simulate with site= and a 3-D reference="
-        )
+    camera = _camera_id(model, camera)
     dt = model.opt.timestep
     n = len(log.t)
     duration = n * dt
     frame_steps = np.minimum((np.arange(int(duration * fps)) / fps / dt).round().astype(int), n - 1)
     stride = max(1, int(round(trace_step / dt)))
     trail_idx = np.arange(0, n, stride)
-    ee_trail = site_positions(model, log.q[trail_idx], site)
-    target_trail = log.ref[trail_idx]
+    ee_trail, target_trail = _trails(model, log, trail_idx)
 
     renderer = make_renderer(model, width, height)
     data = mujoco.MjData(model)
     body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, target_body)
-    mocap = model.body_mocapid[body] if body >= 0 else -1
+    mocap = model.body_mocapid[body] if body >= 0 and log.ref.shape[1] == 3 else -1
     if mocap >= 0 and target_quat is not None:
         data.mocap_quat[mocap] = target_quat
     frames = np.empty((len(frame_steps), height, width, 3), dtype=np.uint8)
@@ -158,6 +159,44 @@ def render_run(
         if bar is not None:
             bar.close()
     return frames
+
+
+def _camera_id(model: mujoco.MjModel, camera: str | int | None) -> int:
+    """The id of ``camera`` (a name or an id; -1 is MuJoCo's free camera), or by default the
+    model's first camera; ``ValueError`` naming the model's cameras for one it lacks."""
+    if camera is None:
+        return 0 if model.ncam else -1
+    if isinstance(camera, str):
+        cam = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, camera)
+        found = cam >= 0
+    else:
+        found = isinstance(camera, (int, np.integer)) and not isinstance(camera, bool) and -1 <= camera < model.ncam
+        cam = int(camera) if found else -1
+    if not found:
+        names = [model.camera(i).name for i in range(model.ncam)]
+        raise ValueError(
+            f"camera {camera!r} is not in the model; its cameras are {names} "
+            "(ids from 0), or -1 for MuJoCo's free camera"
+        )
+    return cam
+
+
+def _trails(model: mujoco.MjModel, log: Log, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The points (K, 3) of the logged site's trace and of the reference's at the rows ``idx``.
+
+    The site's come from forward kinematics of the logged joint angles (so they match the
+    drawn robot whatever step the loop logged the site at). A reference with fewer than 3
+    columns takes the site's remaining coordinates; either trace is empty without a site.
+    """
+    d = log.ref.shape[1]
+    if d > 3:
+        raise ValueError(f"the log's reference must be positions of at most 3 coordinates, got shape {log.ref.shape}")
+    if log.site < 0:
+        return np.empty((0, 3)), np.empty((0, 3))
+    ee_trail = site_positions(model, log.q[idx], log.site)
+    target_trail = ee_trail.copy() if d else np.empty((0, 3))
+    target_trail[:, :d] = log.ref[idx]
+    return ee_trail, target_trail
 
 
 def _progress_bar(total: int):

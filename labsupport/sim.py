@@ -97,6 +97,7 @@ class Log:
         ee_rot: (N, 3, 3) end-effector site orientation, or (N, 0, 0) without a site.
         ref: (N, d) reference position at the step's start, or (N, 0) without a reference.
         err: (N, d) ``ref - ee[:, :d]``, or (N, 0).
+        site: id of the site whose pose ``ee`` and ``ee_rot`` hold, or -1 without a site.
     """
 
     t: np.ndarray
@@ -108,6 +109,7 @@ class Log:
     ee_rot: np.ndarray
     ref: np.ndarray
     err: np.ndarray
+    site: int = -1
 
 
 def reset(
@@ -293,7 +295,7 @@ def simulate(
         err = ref - ee[:, : ref.shape[1]]
     else:
         ref = err = np.empty((nsteps, 0))
-    return Log(t, q, qdot, tau_log, ctrl_log, ee, ee_rot, ref, err)
+    return Log(t, q, qdot, tau_log, ctrl_log, ee, ee_rot, ref, err, site_id)
 
 
 def _controller_failed(err: ValueError, model: mujoco.MjModel, data: mujoco.MjData) -> ValueError:

@@ -4,6 +4,7 @@ Each case runs in a fresh interpreter, because MuJoCo reads ``MUJOCO_GL`` once, 
 first imported.
 """
 
+import dataclasses
 import json
 import os
 import re
@@ -154,13 +155,65 @@ def test_video_waits_for_the_reader():
     assert " controls" in video and "autoplay" not in video
 
 
-def test_render_needs_a_3d_reference():
-    import mujoco
+def test_render_names_the_cameras_and_refuses_a_reference_beyond_3d():
+    from labsupport.plants import load_model
+    from labsupport.sim import simulate
 
-    from labsupport.sim import Log
+    model, data = load_model("planar_2r")
+    log = simulate(model, data, lambda model, data: np.zeros(2), 0.01, site="end_effector")
+    for camera in ("lab", 1, -2, True, 0.0):
+        with pytest.raises(ValueError, match=r"camera .* is not in the model; its cameras are \['top'\]"):
+            render.render_run(model, log, camera=camera)
+    wide = dataclasses.replace(log, ref=np.zeros((len(log.t), 4)))
+    with pytest.raises(ValueError, match="at most 3 coordinates"):
+        render.render_run(model, wide)
 
-    model = mujoco.MjModel.from_xml_string("<mujoco/>")
-    empty = np.empty((2, 0))
-    log = Log(np.zeros(2), empty, empty, empty, empty, empty, np.empty((2, 0, 0)), empty, empty)
-    with pytest.raises(ValueError, match="3-D positions"):
-        render.render_run(model, log)
+
+DEFAULTS_SCRIPT = r"""
+import json, sys
+import numpy as np
+import labsupport
+from labsupport import render, trajectories
+from labsupport.plants import load_model
+from labsupport.sim import simulate
+result = {}
+for name, q0, reference in (
+    ("planar_2r", [0.3, 1.2], lambda t: trajectories.circle_2d(t, (0.5, 0.2), 0.15, 2.0)),
+    ("spatial_3r", [0.2, 0.4, 0.6], lambda t: trajectories.circle_3d(t, (0.8, 0.8, 1.2), 0.2, (0, 0, 1), 0.5)),
+):
+    model, data = load_model(name)
+    ref = trajectories.sample(reference, model.opt.timestep, 1.0)
+    def hold(model, data, q0=np.array(q0)):  # PD with gravity compensation: the arm swings, the site moves
+        return data.qfrc_bias + 40.0 * (q0 - data.qpos) - 5.0 * data.qvel
+    log = simulate(model, data, hold, 1.0, site="end_effector", reference=ref)
+    frames = render.render_run(model, log, fps=4, progress=False)
+    last = frames[-1].astype(int)
+    red = (last[..., 0] > 180) & (last[..., 1] < 70) & (last[..., 2] < 70)
+    blue = (last[..., 2] > 180) & (last[..., 0] < 70)
+    result[name] = {"shape": list(frames.shape), "std": float(last.std()), "red": int(red.sum()),
+                    "blue": int(blue.sum()), "site": log.site}
+print(json.dumps(result))
+"""
+
+
+@pytest.mark.skipif(not gl.egl_works(), reason="EGL cannot open a display on this machine")
+def test_every_arm_renders_with_the_defaults(tmp_path):
+    """The 2R (a planar reference) and the 3R render without naming a camera or a site: the
+    model's own camera, and the traces of the site the run logged and of its reference."""
+    environment = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    out = subprocess.run(
+        [sys.executable, "-c", DEFAULTS_SCRIPT],
+        env=environment,
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert out.returncode == 0, out.stderr
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    for name, frame in result.items():
+        assert frame["shape"] == [4, 240, 320, 3], name
+        assert frame["std"] > 10, f"{name}: a blank frame"
+        assert frame["site"] == 0, name
+        # the site swings 1 s under PD: its red trace and the reference's blue one both show
+        assert frame["red"] > 30 and frame["blue"] > 30, (name, frame)
