@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ctypes.util
 import os
+import platform
 import sys
 
 #: Where glvnd looks for EGL vendor files; Colab's NVIDIA driver ships none.
@@ -17,6 +18,16 @@ NVIDIA_EGL_VENDOR_FILE = "/usr/share/glvnd/egl_vendor.d/10_nvidia.json"
 _NVIDIA_EGL_VENDOR_JSON = (
     '{\n  "file_format_version" : "1.0.0",\n  "ICD" : { "library_path" : "libEGL_nvidia.so.0" }\n}\n'
 )
+
+
+def on_linux() -> bool:
+    """True on Linux, where ``MUJOCO_GL`` must name a backend; elsewhere MuJoCo's default renders."""
+    return platform.system() == "Linux"
+
+
+def display_open() -> bool:
+    """True when an X11 or Wayland display is open (a Linux desktop session), so GLFW can render."""
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
 def on_colab() -> bool:
@@ -109,10 +120,12 @@ last_choice: str = "select_backend() has not run"
 def select_backend() -> str | None:
     """Set ``MUJOCO_GL`` (and ``PYOPENGL_PLATFORM``) unless the user already chose.
 
-    EGL is taken if it really opens a display (:func:`egl_works`), else OSMesa if it really
-    creates a context (:func:`osmesa_works`), else nothing: simulation still works and
-    rendering raises a :class:`labsupport.render.RenderingUnavailable` that says what to
-    install. Returns the backend in force, or None.
+    On Linux, EGL is taken if it really opens a display (:func:`egl_works`), else OSMesa if it
+    really creates a context (:func:`osmesa_works`), else GLFW if a desktop display is open,
+    else nothing: simulation still works and rendering raises a
+    :class:`labsupport.render.RenderingUnavailable` that says what to install. On macOS and
+    Windows nothing is set and MuJoCo's own default is in force (returned as ``"default"``).
+    Returns the backend in force, or None.
     """
     global last_choice
     if "MUJOCO_GL" in os.environ:
@@ -121,16 +134,20 @@ def select_backend() -> str | None:
     if "mujoco" in sys.modules:
         last_choice = "mujoco was imported before labsupport, so MUJOCO_GL could not be chosen"
         return None
+    if not on_linux():
+        last_choice = f"MuJoCo's default backend for {platform.system()} (MUJOCO_GL unset)"
+        return "default"
     if on_colab():
         install_nvidia_egl_vendor_file()
     tried = []
-    for backend, works in (("egl", egl_works), ("osmesa", osmesa_works)):
+    for backend, works in (("egl", egl_works), ("osmesa", osmesa_works), ("glfw", display_open)):
         if works():
             os.environ["MUJOCO_GL"] = backend
-            os.environ.setdefault("PYOPENGL_PLATFORM", backend)
+            if backend != "glfw":
+                os.environ.setdefault("PYOPENGL_PLATFORM", backend)
             last_choice = f"MUJOCO_GL={backend} (tried first: {', '.join(tried) or 'nothing'})"
             return backend
-        tried.append(f"{backend} did not work")
+        tried.append(f"{backend} did not work" if backend != "glfw" else "no display is open for glfw")
     last_choice = "no OpenGL backend works: " + ", ".join(tried)
     return None
 

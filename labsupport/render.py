@@ -1,8 +1,9 @@
 r"""Offscreen MuJoCo video: replay a run, draw the target and end-effector traces, encode MP4.
 
 Rendering goes through :class:`mujoco.Renderer` on the OpenGL backend that
-:mod:`labsupport.gl` chose when :mod:`labsupport` was imported: EGL (a GPU, or Mesa's
-llvmpipe on a CPU-only machine), else OSMesa. If none works, :class:`RenderingUnavailable`
+:mod:`labsupport.gl` chose when :mod:`labsupport` was imported: on Linux EGL (a GPU, or Mesa's
+llvmpipe on a CPU-only machine), else OSMesa, else GLFW on a desktop; on macOS and Windows
+MuJoCo's own default. If none works, :class:`RenderingUnavailable`
 says what to install; :func:`show_run_video` then prints that message instead of a video, so
 a notebook still runs to the end.
 
@@ -27,12 +28,13 @@ TARGET_RGBA = np.array([0.0, 0.2, 1.0, 1.0], dtype=np.float32)
 EE_RGBA = np.array([1.0, 0.0, 0.0, 0.8], dtype=np.float32)
 
 INSTALL_HINT = (
-    "Install an OpenGL library that works without a display and restart the kernel: "
+    "On Linux, install an OpenGL library that works without a display and restart the kernel: "
     "on Debian/Ubuntu `sudo apt-get install libegl1 libgl1-mesa-dri` (EGL through Mesa) or "
-    "`sudo apt-get install libosmesa6` (OSMesa, software only); on Colab choose a GPU runtime "
-    "(Runtime > Change runtime type), labsupport sets up NVIDIA's EGL itself. Then "
-    "`import labsupport` before anything imports mujoco. The simulation results do not need "
-    "a video."
+    "`sudo apt-get install libosmesa6` (OSMesa, software only). On Colab choose a GPU runtime "
+    "(Runtime > Change runtime type); labsupport sets up NVIDIA's EGL itself. On macOS and "
+    "Windows MuJoCo renders through the desktop's OpenGL with MUJOCO_GL unset: update the "
+    "graphics driver, or run the notebook in Colab. In every case `import labsupport` before "
+    "anything imports mujoco. The simulation results do not need a video."
 )
 
 
@@ -61,13 +63,14 @@ def make_renderer(model: mujoco.MjModel, width: int = 320, height: int = 240) ->
             "pick a smaller size or raise <visual><global offwidth offheight>"
         )
     backend = os.environ.get("MUJOCO_GL")
-    if not backend:
+    if not backend and gl.on_linux():  # on Linux, MuJoCo's default (GLFW) needs a display
         raise RenderingUnavailable(f"No OpenGL backend for MuJoCo ({gl.last_choice}). {INSTALL_HINT}")
     try:
         return mujoco.Renderer(model, height=height, width=width)
-    except Exception as err:  # EGL/OSMesa/PyOpenGL raise many types; all mean "no context"
+    except Exception as err:  # EGL/OSMesa/CGL/GLFW/PyOpenGL raise many types; all mean "no context"
+        used = f"MUJOCO_GL={backend}" if backend else "its default backend"
         raise RenderingUnavailable(
-            f"MuJoCo could not open an offscreen OpenGL context with MUJOCO_GL={backend} "
+            f"MuJoCo could not open an offscreen OpenGL context with {used} "
             f"({type(err).__name__}: {err}). {INSTALL_HINT}"
         ) from err
 

@@ -109,15 +109,62 @@ def test_no_backend_at_all_is_explained(monkeypatch):
         render.make_renderer(model)
 
 
-def test_select_backend_reports_when_nothing_works(monkeypatch):
+@pytest.fixture
+def fresh_backend_choice(monkeypatch):
+    """select_backend as on a first import: no MUJOCO_GL, mujoco not imported (restored after)."""
     monkeypatch.delenv("MUJOCO_GL", raising=False)
-    monkeypatch.setattr(gl, "egl_works", lambda: False)
-    monkeypatch.setattr(gl, "osmesa_works", lambda: False)
-    monkeypatch.delitem(sys.modules, "mujoco", raising=False)  # restored after the test
+    monkeypatch.delenv("PYOPENGL_PLATFORM", raising=False)
+    monkeypatch.delitem(sys.modules, "mujoco", raising=False)
     monkeypatch.setattr(gl, "last_choice", gl.last_choice)
+    return monkeypatch
+
+
+def test_select_backend_reports_when_nothing_works(fresh_backend_choice):
+    fresh_backend_choice.setattr(gl, "on_linux", lambda: True)
+    fresh_backend_choice.setattr(gl, "egl_works", lambda: False)
+    fresh_backend_choice.setattr(gl, "osmesa_works", lambda: False)
+    fresh_backend_choice.setattr(gl, "display_open", lambda: False)
     assert gl.select_backend() is None
-    assert "no OpenGL backend works" in gl.last_choice
+    assert "no OpenGL backend works" in gl.last_choice and "no display is open for glfw" in gl.last_choice
     assert "MUJOCO_GL" not in os.environ
+
+
+def test_a_linux_desktop_without_egl_or_osmesa_renders_through_glfw(fresh_backend_choice):
+    fresh_backend_choice.setattr(gl, "on_linux", lambda: True)
+    fresh_backend_choice.setattr(gl, "egl_works", lambda: False)
+    fresh_backend_choice.setattr(gl, "osmesa_works", lambda: False)
+    fresh_backend_choice.setenv("DISPLAY", ":0")
+    assert gl.select_backend() == "glfw"
+    assert os.environ["MUJOCO_GL"] == "glfw" and "PYOPENGL_PLATFORM" not in os.environ
+
+
+def test_macos_and_windows_keep_mujocos_own_default(fresh_backend_choice):
+    """MuJoCo renders offscreen there with MUJOCO_GL unset (CGL on macOS, GLFW on Windows); EGL
+    and OSMesa, Linux's, are not even probed."""
+    fresh_backend_choice.setattr(gl, "on_linux", lambda: False)
+    fresh_backend_choice.setattr(gl, "egl_works", lambda: pytest.fail("EGL probed off Linux"))
+    assert gl.select_backend() == "default"
+    assert "MUJOCO_GL" not in os.environ and "default backend" in gl.last_choice
+
+
+def test_off_linux_the_renderer_tries_mujocos_default_and_explains_a_failure(monkeypatch):
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='1'/></worldbody></mujoco>")
+    monkeypatch.delenv("MUJOCO_GL", raising=False)
+    monkeypatch.setattr(gl, "on_linux", lambda: False)
+    made = object()
+    monkeypatch.setattr(mujoco, "Renderer", lambda model, height, width: made)
+    assert render.make_renderer(model) is made
+
+    def no_context(model, height, width):
+        raise RuntimeError("CGL: no pixel format")
+
+    monkeypatch.setattr(mujoco, "Renderer", no_context)
+    with pytest.raises(
+        render.RenderingUnavailable, match=r"its default backend \(RuntimeError: CGL.*macOS and Windows"
+    ):
+        render.make_renderer(model)
 
 
 def test_renderer_size_is_checked():
