@@ -28,7 +28,9 @@ so it differs between MuJoCo versions; the speed bound catches it at the same st
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import warnings
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import mujoco
@@ -245,35 +247,39 @@ def simulate(
     step, step1, step2, get_state = mujoco.mj_step, mujoco.mj_step1, mujoco.mj_step2, mujoco.mj_getState
     log_before = not log_after_step
 
-    for k in range(nsteps):
-        if split_step:
-            step1(model, data)
-        try:
-            tau = controller(model, data)
-        except ValueError as err:
-            raise _controller_failed(err, model, data) from err
-        if type(tau) is not np.ndarray or tau.shape != (nu,):
-            tau = _as_torque(tau, nu)
-        if limit is not None:
-            tau = np.clip(tau, neg_limit, limit, out=clipped)
-        if actuation is None:
-            ctrl[:] = tau
-        else:
-            tau_log[k] = tau
-            ctrl[:] = actuation(model, data, tau)
-        if log_before:
-            get_state(model, data, state[k], _LOGGED_STATE)
-            if with_site:
-                ee[k] = site_xpos
-                ee_rot[k] = site_xmat
-        if split_step:
-            step2(model, data)
-        else:
-            step(model, data)
-        if warn[_W_QPOS] or warn[_W_QVEL] or warn[_W_QACC] or warn[_W_CTRL]:
-            _raise_warning(k, state, q, qdot, t_start, q_start, qdot_start, tau, warn, log_after_step)
-        if log_after_step:
-            get_state(model, data, state[k], _LOGGED_STATE)
+    said: list[str] = []  # MuJoCo's own warning messages during the run
+    with _mujoco_warnings_to(said):
+        for k in range(nsteps):
+            if split_step:
+                step1(model, data)
+            try:
+                tau = controller(model, data)
+            except ValueError as err:
+                raise _controller_failed(err, model, data) from err
+            if type(tau) is not np.ndarray or tau.shape != (nu,):
+                tau = _as_torque(tau, nu)
+            if limit is not None:
+                tau = np.clip(tau, neg_limit, limit, out=clipped)
+            if actuation is None:
+                ctrl[:] = tau
+            else:
+                tau_log[k] = tau
+                ctrl[:] = actuation(model, data, tau)
+            if log_before:
+                get_state(model, data, state[k], _LOGGED_STATE)
+                if with_site:
+                    ee[k] = site_xpos
+                    ee_rot[k] = site_xmat
+            if split_step:
+                step2(model, data)
+            else:
+                step(model, data)
+            if warn[_W_QPOS] or warn[_W_QVEL] or warn[_W_QACC] or warn[_W_CTRL]:
+                _raise_warning(k, state, q, qdot, t_start, q_start, qdot_start, tau, warn, log_after_step, said)
+            if log_after_step:
+                get_state(model, data, state[k], _LOGGED_STATE)
+    for message in said:  # the run went on: MuJoCo's other warnings (a full contact buffer, ...)
+        warnings.warn(f"MuJoCo: {message}", RuntimeWarning, stacklevel=2)
 
     if log_after_step:  # each row holds the state after its step; the control began one step earlier
         t = state[:, 0].copy()
@@ -320,7 +326,7 @@ def _as_torque(tau, nu: int) -> np.ndarray:
     return tau.reshape(nu)
 
 
-def _raise_warning(k, state, q, qdot, t_start, q_start, qdot_start, tau, warn, log_after_step):
+def _raise_warning(k, state, q, qdot, t_start, q_start, qdot_start, tau, warn, log_after_step, said):
     """MuJoCo flagged step ``k`` (and reset the state): report the state at the step's start,
     or the first earlier state beyond :data:`RUNAWAY_SPEED` (so a run that ran away reports the
     same time whether or not this MuJoCo's warnings fire as well)."""
@@ -338,7 +344,23 @@ def _raise_warning(k, state, q, qdot, t_start, q_start, qdot_start, tau, warn, l
             f"MuJoCo warning {mujoco.mjtWarning(w).name}: {_WARNING_MEANING[w]} during the step "
             "from this state; MuJoCo reset the simulation"
         )
+    if said:
+        reason += f" (MuJoCo: {said[-1].split('. ')[0]})"
     raise SimulationDiverged(float(tk), qk, qdk, reason)
+
+
+@contextmanager
+def _mujoco_warnings_to(said: list[str]) -> Iterator[None]:
+    """While the loop runs, collect MuJoCo's warning messages in ``said`` instead of letting its
+    default handler print them and append them to ``MUJOCO_LOG.TXT`` in the working directory
+    (a stray file in a student's folder); the loop reports them itself. The handler in force
+    before is restored afterwards."""
+    before = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(said.append)
+    try:
+        yield
+    finally:
+        mujoco.set_mju_user_warning(before)
 
 
 def _check_runaway(t, q, qdot):

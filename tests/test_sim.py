@@ -108,6 +108,46 @@ def test_mujocos_own_warning_is_reported_when_nothing_ran_away_before_it(arm):
     assert np.abs(err.value.qvel).max() < sim.RUNAWAY_SPEED
 
 
+def test_mujocos_warnings_reach_the_error_and_no_log_file_or_other_handler(arm, tmp_path, monkeypatch):
+    """MuJoCo's own message (which DOF) is in the error; MuJoCo writes no MUJOCO_LOG.TXT into the
+    working directory, and a warning handler set before the run is in force again after it."""
+    import mujoco
+
+    model, data = arm
+    monkeypatch.chdir(tmp_path)
+    mine = []
+    mujoco.set_mju_user_warning(mine.append)
+    try:
+        with pytest.raises(sim.SimulationDiverged, match=r"\(MuJoCo: Nan, Inf or huge value in QACC at DOF 0\)"):
+            sim.simulate(model, data, lambda m, d: np.array([5e9, 0.0]) if d.time > 0.011 else np.zeros(2), 0.1)
+        assert not (tmp_path / "MUJOCO_LOG.TXT").exists() and mine == []
+        mujoco.mj_resetData(model, data)
+        data.qvel[0] = np.nan
+        mujoco.mj_step(model, data)  # outside the loop, MuJoCo's warnings go where they went before
+        assert len(mine) == 1 and "QVEL" in mine[0]
+    finally:
+        mujoco.set_mju_user_warning(None)
+
+
+def test_mujocos_other_warnings_become_python_warnings_after_the_run(arm, tmp_path, monkeypatch):
+    """A warning that does not stop the run (MuJoCo's "Too many contacts", say, which the course's
+    arms never raise) is not lost: the run finishes and the notebook shows it as a RuntimeWarning.
+    MuJoCo passes such a message to the handler in force, which the controller plays here."""
+    import mujoco
+
+    model, data = arm
+    monkeypatch.chdir(tmp_path)
+
+    def warns_once(model, data):
+        if abs(data.time - 0.02) < 1e-9:
+            mujoco.get_mju_user_warning()("Too many contacts. Time = 0.0200.")
+        return np.zeros(2)
+
+    with pytest.warns(RuntimeWarning, match=r"MuJoCo: Too many contacts\. Time = 0\.0200\."):
+        log = sim.simulate(model, data, warns_once, 0.05)
+    assert len(log.t) == 25 and not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
 def test_non_finite_torque_is_reported(arm):
     model, data = arm
     with pytest.raises(sim.SimulationDiverged, match="controller returned tau"):
