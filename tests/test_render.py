@@ -45,11 +45,13 @@ print(json.dumps(result))
 """
 
 
-def _render_in_subprocess(tmp_path, **env):
+def _run_script(tmp_path, script: str, *args: str, **env) -> dict:
+    """Run ``script`` in a fresh interpreter (MuJoCo reads ``MUJOCO_GL`` once, on import) with
+    ``env`` added to an environment free of any GL choice; the JSON of its last line."""
     environment = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
     environment.update(env)
     out = subprocess.run(
-        [sys.executable, "-c", SCRIPT, str(tmp_path / "frames.npy")],
+        [sys.executable, "-c", script, *args],
         env=environment,
         cwd=tmp_path,
         capture_output=True,
@@ -57,7 +59,11 @@ def _render_in_subprocess(tmp_path, **env):
         timeout=300,
     )
     assert out.returncode == 0, out.stderr
-    result = json.loads(out.stdout.strip().splitlines()[-1])
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _render_in_subprocess(tmp_path, **env):
+    result = _run_script(tmp_path, SCRIPT, str(tmp_path / "frames.npy"), **env)
     frames = np.load(tmp_path / "frames.npy") if (tmp_path / "frames.npy").exists() else None
     return result, frames
 
@@ -247,17 +253,7 @@ print(json.dumps(result))
 def test_every_arm_renders_with_the_defaults(tmp_path):
     """The 2R (a planar reference) and the 3R render without naming a camera or a site: the
     model's own camera, and the traces of the site the run logged and of its reference."""
-    environment = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
-    out = subprocess.run(
-        [sys.executable, "-c", DEFAULTS_SCRIPT],
-        env=environment,
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert out.returncode == 0, out.stderr
-    result = json.loads(out.stdout.strip().splitlines()[-1])
+    result = _run_script(tmp_path, DEFAULTS_SCRIPT)
     for name, frame in result.items():
         assert frame["shape"] == [4, 240, 320, 3], name
         assert frame["std"] > 10, f"{name}: a blank frame"
