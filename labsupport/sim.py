@@ -24,6 +24,11 @@ non-finite state, or a joint turning faster than :data:`RUNAWAY_SPEED`. The last
 a numerically unstable run (a damping too stiff for the time step) first swings chaotically at
 hundreds of rad/s, and whether it then overflows into MuJoCo's warnings depends on rounding,
 so it differs between MuJoCo versions; the speed bound catches it at the same step on all.
+
+While the loop runs, MuJoCo's warning messages come to the loop instead of MuJoCo's default
+handler (which prints them and appends them to ``MUJOCO_LOG.TXT`` in the working directory):
+the one that stops a run is quoted in the error (it names the joint or actuator), and any
+other is shown as a Python ``RuntimeWarning`` when the run ends.
 """
 
 from __future__ import annotations
