@@ -140,14 +140,19 @@ def select_backend() -> str | None:
     if on_colab():
         install_nvidia_egl_vendor_file()
     tried = []
-    for backend, works in (("egl", egl_works), ("osmesa", osmesa_works), ("glfw", display_open)):
+    # (backend, whether it works here, PyOpenGL's platform for it, what to report if not)
+    for backend, works, pyopengl, failed in (
+        ("egl", egl_works, "egl", "egl did not work"),
+        ("osmesa", osmesa_works, "osmesa", "osmesa did not work"),
+        ("glfw", display_open, None, "no display is open for glfw"),  # PyOpenGL's default: GLX
+    ):
         if works():
             os.environ["MUJOCO_GL"] = backend
-            if backend != "glfw":
-                os.environ.setdefault("PYOPENGL_PLATFORM", backend)
+            if pyopengl:
+                os.environ.setdefault("PYOPENGL_PLATFORM", pyopengl)
             last_choice = f"MUJOCO_GL={backend} (tried first: {', '.join(tried) or 'nothing'})"
             return backend
-        tried.append(f"{backend} did not work" if backend != "glfw" else "no display is open for glfw")
+        tried.append(failed)
     last_choice = "no OpenGL backend works: " + ", ".join(tried)
     return None
 
