@@ -197,7 +197,9 @@ def _trails(model: mujoco.MjModel, log: Log, idx: np.ndarray) -> tuple[np.ndarra
     if log.site < 0:
         return np.empty((0, 3)), np.empty((0, 3))
     ee_trail = site_positions(model, log.q[idx], log.site)
-    target_trail = ee_trail.copy() if d else np.empty((0, 3))
+    if not d:
+        return ee_trail, np.empty((0, 3))
+    target_trail = ee_trail.copy()
     target_trail[:, :d] = log.ref[idx]
     return ee_trail, target_trail
 
