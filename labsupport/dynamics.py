@@ -21,6 +21,8 @@ import threading
 import mujoco
 import numpy as np
 
+from labsupport import validate
+
 #: The oldest MuJoCo the package admits (``pyproject.toml`` says the same; a test checks): on
 #: 3.3.0 and older ``mj_jacDot`` gives a :math:`\dot J\dot q` that disagrees with finite
 #: differences, and before 3.3.6 the UR5e scene does not compile. The unit tests run on it
@@ -220,18 +222,4 @@ def site_id(model: mujoco.MjModel, site: int | str) -> int:
     arrays)."""
     if type(site) is int and 0 <= site < model.nsite:  # the laws' case, every step: first and cheap
         return site
-    if isinstance(site, str):
-        site_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
-        if site_id < 0:
-            raise ValueError(f"site {site!r} is not in the model; its sites are {_site_names(model)}")
-        return site_id
-    if isinstance(site, (int, np.integer)) and not isinstance(site, bool) and 0 <= site < model.nsite:
-        return int(site)
-    raise ValueError(
-        f"site must be a site's name or an id from 0 to {model.nsite - 1}, got {site!r}; "
-        f"the model's sites are {_site_names(model)}"
-    )
-
-
-def _site_names(model: mujoco.MjModel) -> list[str]:
-    return [model.site(i).name for i in range(model.nsite)]
+    return validate.model_object(model, "site", site)

@@ -21,6 +21,7 @@ import mediapy
 import mujoco
 import numpy as np
 
+from labsupport import validate
 from labsupport.sim import Log, site_positions
 
 #: Blue target trace and red end-effector trace, as in the lab.
@@ -169,19 +170,9 @@ def _camera_id(model: mujoco.MjModel, camera: str | int | None) -> int:
     model's first camera; ``ValueError`` naming the model's cameras for one it lacks."""
     if camera is None:
         return 0 if model.ncam else -1
-    if isinstance(camera, str):
-        cam = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, camera)
-        found = cam >= 0
-    else:
-        found = isinstance(camera, (int, np.integer)) and not isinstance(camera, bool) and -1 <= camera < model.ncam
-        cam = int(camera) if found else -1
-    if not found:
-        names = [model.camera(i).name for i in range(model.ncam)]
-        raise ValueError(
-            f"camera {camera!r} is not in the model; its cameras are {names} "
-            "(ids from 0), or -1 for MuJoCo's free camera"
-        )
-    return cam
+    if type(camera) is int and camera == -1:
+        return -1
+    return validate.model_object(model, "camera", camera)
 
 
 def _trails(model: mujoco.MjModel, log: Log, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

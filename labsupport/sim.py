@@ -133,10 +133,7 @@ def reset(
     if keyframe is None:
         mujoco.mj_resetData(model, data)
     else:
-        key = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
-        if key < 0:
-            names = [model.key(i).name for i in range(model.nkey)]
-            raise ValueError(f"keyframe {keyframe!r} is not in the model; its keyframes are {names}")
+        key = validate.model_object(model, "keyframe", keyframe)
         mujoco.mj_resetDataKeyframe(model, data, key)
     if q0 is not None:
         data.qpos[:] = validate.vector("q0", q0, (model.nq,))

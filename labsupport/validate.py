@@ -1,11 +1,19 @@
 """Input checks, written once: every public function of the package validates its arguments
-with these two, so a bad argument gets a message that names it, says what was expected and
+with these, so a bad argument gets a message that names it, says what was expected and
 what came instead, rather than a traceback from deep inside NumPy or MuJoCo.
 """
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
+
+#: What :func:`model_object` looks up: MuJoCo's object type and the model's count of them.
+_OBJECTS = {
+    "site": (mujoco.mjtObj.mjOBJ_SITE, "nsite"),
+    "camera": (mujoco.mjtObj.mjOBJ_CAMERA, "ncam"),
+    "keyframe": (mujoco.mjtObj.mjOBJ_KEY, "nkey"),
+}
 
 
 def vector(name: str, value, shape) -> np.ndarray:
@@ -59,3 +67,19 @@ def _short(value) -> str:
     with np.printoptions(precision=4, threshold=12, edgeitems=3):
         text = repr(value) if not isinstance(value, np.ndarray) else np.array2string(value)
     return text if len(text) <= 200 else text[:197] + "..."
+
+
+def model_object(model: mujoco.MjModel, kind: str, value) -> int:
+    """The id of the model's ``kind`` (``"site"``, ``"camera"`` or ``"keyframe"``) given by name
+    or by id, or a ``ValueError`` that lists the model's ones (an id out of range would make
+    MuJoCo read past its arrays)."""
+    obj, count = _OBJECTS[kind][0], getattr(model, _OBJECTS[kind][1])
+    if isinstance(value, str):
+        found = mujoco.mj_name2id(model, obj, value)
+        if found >= 0:
+            return found
+    elif isinstance(value, (int, np.integer)) and not isinstance(value, bool) and 0 <= value < count:
+        return int(value)
+    names = [mujoco.mj_id2name(model, obj, i) or "" for i in range(count)]
+    ids = f", by name or by id from 0 to {count - 1}" if count else ""
+    raise ValueError(f"{kind} {value!r} is not in the model; its {kind}s are {names}{ids}")
