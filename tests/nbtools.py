@@ -23,6 +23,11 @@ def repository_url() -> str:
     return config["repository"]["url"].rstrip("/")
 
 
+def archive_url(url: str, branch: str = "main") -> str:
+    """GitHub's zip of the tip of ``branch``: pip builds a package from it without ``git``."""
+    return f"{url}/archive/refs/heads/{branch}.zip"
+
+
 def install_cell_source(url: str | None = None, branch: str = "main") -> str:
     """The exact source of every notebook's first cell."""
     url = url or repository_url()
@@ -33,7 +38,7 @@ def install_cell_source(url: str | None = None, branch: str = "main") -> str:
         "import importlib, importlib.util, subprocess, sys\n"
         'if importlib.util.find_spec("labsupport") is None:\n'
         '    subprocess.run([sys.executable, "-m", "pip", "install", "-q",\n'
-        f'                    "labsupport @ git+{url}@{branch}"], check=True)\n'
+        f'                    "labsupport @ {archive_url(url, branch)}"], check=True)\n'
         "    importlib.invalidate_caches()"
     )
 

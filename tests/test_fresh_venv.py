@@ -1,9 +1,10 @@
 """A notebook runs in a brand-new virtual environment, far from this repository.
 
 This is what a student's Colab session does: a Python with nothing of ours installed runs the
-install cell, which pip-installs ``labsupport @ git+<repository>@<branch>``, and then the
-notebook. Here the same pip command installs from this checkout's git repository
-(``git+file://...@<HEAD>``, so only committed files count, exactly as for the GitHub URL), into a
+install cell, which pip-installs ``labsupport @ <repository>/archive/refs/heads/<branch>.zip``
+(GitHub's zip of the branch), and then the notebook. Here the same pip command installs from a
+zip of this checkout's HEAD made by ``git archive`` (so only committed files count, exactly as in
+GitHub's zip), with no ``git`` on the PATH (a student's machine may have none), into a
 virtual environment that does NOT see the system's or the project's site-packages, and the
 Task 1 notebook is executed from a temporary directory outside the repository. A missing
 dependency, a model file not shipped with the package, or a path relative to the repository
@@ -55,13 +56,6 @@ print(nb.cells[-1].outputs[-1]["text"])
 """
 
 
-def _git_head() -> str:
-    out = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True, text=True)
-    if out.returncode != 0:
-        pytest.fail(f"the fresh-venv test installs from this git checkout, but git failed: {out.stderr}")
-    return out.stdout.strip()
-
-
 def _run(cmd, **kwargs):
     out = subprocess.run(cmd, capture_output=True, text=True, **kwargs)
     assert out.returncode == 0, f"{' '.join(map(str, cmd))} failed:\n{out.stdout[-3000:]}\n{out.stderr[-3000:]}"
@@ -69,7 +63,7 @@ def _run(cmd, **kwargs):
 
 
 def test_task1_runs_in_a_fresh_venv(tmp_path):
-    assert shutil.which("git"), "git is needed to install from the checkout, as pip does from GitHub"
+    assert shutil.which("git"), "git is needed to make the zip of this checkout that pip installs"
     venv = tmp_path / "venv"
     work = tmp_path / "student"
     work.mkdir()
@@ -81,13 +75,23 @@ def test_task1_runs_in_a_fresh_venv(tmp_path):
     env["MUJOCO_GL"] = env.get("MUJOCO_GL", "egl")
     env["PIP_DISABLE_PIP_VERSION_CHECK"] = "1"
 
-    # Colab's pip is recent; the pip that `venv` bundles may be too old for `git+file://` URLs.
+    # Colab's pip is recent; the pip that `venv` bundles may be older.
     _run([str(py), "-m", "pip", "install", "-q", "--upgrade", "pip"], cwd=work, env=env, timeout=600)
-    # The install cell's command, with the local repository in place of the GitHub URL.
-    spec = f"labsupport @ git+{ROOT.as_uri()}@{_git_head()}"
+    # The install cell's command, with a zip of this checkout in place of GitHub's zip of the
+    # branch: the same files under one top folder, as GitHub writes it.
     cell = nbtools.install_cell_source()
-    assert '"-m", "pip", "install", "-q"' in cell and "labsupport @ git+" in cell
-    _run([str(py), "-m", "pip", "install", "-q", spec], cwd=work, env=env, timeout=900)
+    assert '"-m", "pip", "install", "-q",' in cell
+    assert f'"labsupport @ {nbtools.archive_url(nbtools.repository_url())}"' in cell
+    top = f"{nbtools.repository_url().rsplit('/', 1)[-1]}-main"
+    archive = tmp_path / f"{top}.zip"
+    _run(["git", "-C", str(ROOT), "archive", "--format=zip", f"--prefix={top}/", "-o", str(archive), "HEAD"])
+    without_git = dict(env, PATH=str(venv / "bin"))
+    _run(
+        [str(py), "-m", "pip", "install", "-q", f"labsupport @ {archive.as_uri()}"],
+        cwd=work,
+        env=without_git,
+        timeout=900,
+    )
     runner = [f"{name}=={importlib.metadata.version(name)}" for name in RUNNER]
     _run([str(py), "-m", "pip", "install", "-q", *runner], cwd=work, env=env, timeout=900)
 

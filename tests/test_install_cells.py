@@ -52,10 +52,10 @@ def test_install_cell_uses_the_configured_repository():
     url = config["repository"]["url"].rstrip("/")
     branch = config["repository"].get("branch", "main")
     source = nbtools.install_cell_source()
-    assert f"git+{url}@{branch}" in source
+    assert f"labsupport @ {url}/archive/refs/heads/{branch}.zip" in source
     # One place: changing the URL in _config.yml changes the cell.
     other = nbtools.install_cell_source("https://github.com/someone/else")
-    assert "git+https://github.com/someone/else@" in other and url not in other
+    assert "https://github.com/someone/else/archive/refs/heads/main.zip" in other and url not in other
 
 
 def _run_install_cell(installed: bool) -> list:
@@ -92,5 +92,5 @@ def test_install_cell_installs_labsupport_where_it_is_missing():
     args, kwargs = calls[0]
     assert args[:4] == [sys.executable, "-m", "pip", "install"]
     spec = args[-1]
-    assert spec == f"labsupport @ git+{nbtools.repository_url()}@main"
+    assert spec == f"labsupport @ {nbtools.repository_url()}/archive/refs/heads/main.zip"
     assert kwargs.get("check") is True, "a failed install must stop the notebook"
