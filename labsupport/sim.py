@@ -33,6 +33,7 @@ other is shown as a Python ``RuntimeWarning`` when the run ends.
 
 from __future__ import annotations
 
+import threading
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -250,7 +251,7 @@ def simulate(
     log_before = not log_after_step
 
     said: list[str] = []  # MuJoCo's own warning messages during the run
-    with _mujoco_warnings_to(said):
+    with _MUJOCO_WARNINGS.to(said):
         for k in range(nsteps):
             if split_step:
                 step1(model, data)
@@ -351,18 +352,56 @@ def _raise_warning(k, state, q, qdot, t_start, q_start, qdot_start, tau, warn, l
     raise SimulationDiverged(float(tk), qk, qdk, reason)
 
 
-@contextmanager
-def _mujoco_warnings_to(said: list[str]) -> Iterator[None]:
-    """While the loop runs, collect MuJoCo's warning messages in ``said`` instead of letting its
-    default handler print them and append them to ``MUJOCO_LOG.TXT`` in the working directory
-    (a stray file in a student's folder); the loop reports them itself. The handler in force
-    before is restored afterwards."""
-    before = mujoco.get_mju_user_warning()
-    mujoco.set_mju_user_warning(said.append)
-    try:
-        yield
-    finally:
-        mujoco.set_mju_user_warning(before)
+class _WarningRoute:
+    """Where MuJoCo's warnings go while runs are in progress: each thread's run collects its own.
+
+    MuJoCo has one warning handler for the whole process, called in the thread whose MuJoCo call
+    warns. The first run to start installs :meth:`handle`, the last to end puts back the handler
+    that was in force before, so runs in several threads (a parameter sweep in a thread pool)
+    neither swap each other's messages nor leave a stale handler behind.
+    """
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.runs = 0
+        self.before = None
+        self.local = threading.local()
+
+    def handle(self, message: str) -> None:
+        """MuJoCo's warning handler: to the run of the calling thread, else to the handler in
+        force before the runs, else a Python ``RuntimeWarning``."""
+        said = getattr(self.local, "said", None)
+        if said is not None:
+            said.append(message)
+        elif self.before is not None:  # a thread that is not running the loop
+            self.before(message)
+        else:
+            warnings.warn(f"MuJoCo: {message}", RuntimeWarning, stacklevel=2)
+
+    @contextmanager
+    def to(self, said: list[str]) -> Iterator[None]:
+        """Collect this thread's MuJoCo warnings in ``said`` for the length of the block."""
+        with self.lock:
+            if self.runs == 0:
+                self.before = mujoco.get_mju_user_warning()
+                mujoco.set_mju_user_warning(self.handle)
+            self.runs += 1
+        outer, self.local.said = getattr(self.local, "said", None), said
+        try:
+            yield
+        finally:
+            self.local.said = outer
+            with self.lock:
+                self.runs -= 1
+                if self.runs == 0:
+                    mujoco.set_mju_user_warning(self.before)
+                    self.before = None
+
+
+#: While the loop runs, MuJoCo's warning messages are collected for the loop instead of going
+#: to MuJoCo's default handler, which prints them and appends them to ``MUJOCO_LOG.TXT`` in the
+#: working directory (a stray file in a student's folder); the loop reports them itself.
+_MUJOCO_WARNINGS = _WarningRoute()
 
 
 def _check_runaway(t, q, qdot):

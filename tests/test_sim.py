@@ -1,6 +1,8 @@
 """The simulation loop: logging conventions, torque limits, keyframes, actuation mappings,
 split and lab stepping, and divergence detection."""
 
+import warnings
+
 import mujoco
 import numpy as np
 import pytest
@@ -146,6 +148,54 @@ def test_mujocos_other_warnings_become_python_warnings_after_the_run(arm, tmp_pa
     with pytest.warns(RuntimeWarning, match=r"MuJoCo: Too many contacts\. Time = 0\.0200\."):
         log = sim.simulate(model, data, warns_once, 0.05)
     assert len(log.t) == 25 and not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+def test_runs_in_threads_keep_their_own_mujoco_warnings(arm, tmp_path, monkeypatch):
+    """Two runs in two threads (a sweep in a thread pool; MuJoCo steps without the GIL): run A
+    starts, run B starts, A ends, then B diverges. B's error still quotes MuJoCo's message, no
+    MUJOCO_LOG.TXT is written, A gets no warning of B's, and once both have ended the handler in
+    force before them is back (none: MuJoCo's default), not a handler left over from a run."""
+    import threading
+
+    model, _ = arm
+    monkeypatch.chdir(tmp_path)
+    both_running, a_done = threading.Barrier(2, timeout=10), threading.Event()
+    results = {}
+
+    def run_a():
+        def controller(model, data):
+            if data.time == 0.0:
+                both_running.wait()
+            return np.zeros(2)
+
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            results["a"] = (sim.simulate(model, mujoco.MjData(model), controller, 0.01), caught)
+        a_done.set()
+
+    def run_b():
+        def controller(model, data):
+            if data.time == 0.0:
+                both_running.wait()
+                a_done.wait(timeout=10)
+            return np.array([5e9, 0.0]) if data.time > 0.011 else np.zeros(2)
+
+        try:
+            sim.simulate(model, mujoco.MjData(model), controller, 0.1)
+        except sim.SimulationDiverged as err:
+            results["b"] = str(err)
+
+    assert mujoco.get_mju_user_warning() is None
+    threads = [threading.Thread(target=run_a), threading.Thread(target=run_b)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(timeout=30)
+    log_a, caught_a = results["a"]
+    assert len(log_a.t) == 5 and caught_a == []
+    assert "(MuJoCo: Nan, Inf or huge value in QACC at DOF 0)" in results["b"]
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+    assert mujoco.get_mju_user_warning() is None
 
 
 def test_non_finite_torque_is_reported(arm):
