@@ -170,9 +170,12 @@ def _camera_id(model: mujoco.MjModel, camera: str | int | None) -> int:
     model's first camera; ``ValueError`` naming the model's cameras for one it lacks."""
     if camera is None:
         return 0 if model.ncam else -1
-    if type(camera) is int and camera == -1:
+    if isinstance(camera, (int, np.integer)) and not isinstance(camera, bool) and camera == -1:
         return -1
-    return validate.model_object(model, "camera", camera)
+    try:
+        return validate.model_object(model, "camera", camera)
+    except ValueError as err:
+        raise ValueError(f"{err}, or -1 for MuJoCo's free camera") from None
 
 
 def _trails(model: mujoco.MjModel, log: Log, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -215,8 +215,9 @@ def test_render_names_the_cameras_and_refuses_a_reference_beyond_3d():
     model, data = load_model("planar_2r")
     log = simulate(model, data, lambda model, data: np.zeros(2), 0.01, site="end_effector")
     for camera in ("lab", 1, -2, True, 0.0):
-        with pytest.raises(ValueError, match=r"camera .* is not in the model; its cameras are \['top'\]"):
+        with pytest.raises(ValueError, match=r"camera .* is not in the model; its cameras are \['top'\].*or -1 for"):
             render.render_run(model, log, camera=camera)
+    assert render._camera_id(model, np.int64(-1)) == -1 and render._camera_id(model, "top") == 0
     wide = dataclasses.replace(log, ref=np.zeros((len(log.t), 4)))
     with pytest.raises(ValueError, match="at most 3 coordinates"):
         render.render_run(model, wide)
