@@ -153,8 +153,9 @@ def test_mujocos_other_warnings_become_python_warnings_after_the_run(arm, tmp_pa
 def test_runs_in_threads_keep_their_own_mujoco_warnings(arm, tmp_path, monkeypatch):
     """Two runs in two threads (a sweep in a thread pool; MuJoCo steps without the GIL): run A
     starts, run B starts, A ends, then B diverges. B's error still quotes MuJoCo's message, no
-    MUJOCO_LOG.TXT is written, A gets no warning of B's, and once both have ended the handler in
-    force before them is back (none: MuJoCo's default), not a handler left over from a run."""
+    MUJOCO_LOG.TXT is written, no Python warning comes out while A runs, and once both have
+    ended the handler in force before them is back (none: MuJoCo's default), not a handler left
+    over from a run."""
     import threading
 
     model, _ = arm
