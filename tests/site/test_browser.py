@@ -154,3 +154,32 @@ def test_one_search_field(tab_page, width):
     """The sidebar holds the search field; the theme must not add a second one in a top bar."""
     visible = tab_page("notebooks/task1_single_joint", width).evaluate(VISIBLE_SEARCH_JS)
     assert visible == 1, f"{visible} search fields visible at {width} px"
+
+
+#: The headings whose theme anchor ("#", hidden until hover or focus) sits below their text, on
+#: a line of its own: the reader sees an empty line under the heading.
+LONE_ANCHORS_JS = """() => {
+  const bottom = (node) => {
+    const range = document.createRange();
+    range.selectNodeContents(node);
+    return Math.max(0, ...[...range.getClientRects()].map((r) => r.bottom));
+  };
+  const lone = [];
+  for (const h of document.querySelectorAll("main h1, main h2, main h3, main h4")) {
+    const anchor = h.querySelector("a.headerlink");
+    if (!anchor) continue;
+    const text = Math.max(...[...h.childNodes].filter((n) => n !== anchor).map(bottom));
+    if (anchor.getBoundingClientRect().top >= text - 2) lone.push(h.textContent.replace(anchor.textContent, "").trim());
+  }
+  return lone;
+}"""
+
+
+@pytest.mark.parametrize("width", (1024, 1280, 1920))
+def test_no_empty_line_under_a_heading(on_every_page, width):
+    """A heading that fills its line keeps its hidden anchor at the end of that line; an anchor
+    pushed onto a line of its own leaves a gap under the heading (the phones' rule in
+    course.css must stay on phones)."""
+    found = on_every_page(LONE_ANCHORS_JS, width)
+    lone = {page: headings for page, headings in found.items() if headings}
+    assert not lone, f"at {width} px these headings have an empty line under them: {lone}"
