@@ -33,6 +33,7 @@ other is shown as a Python ``RuntimeWarning`` when the run ends.
 
 from __future__ import annotations
 
+import sys
 import threading
 import warnings
 from collections.abc import Callable, Iterator
@@ -369,14 +370,16 @@ class _WarningRoute:
 
     def handle(self, message: str) -> None:
         """MuJoCo's warning handler: to the run of the calling thread, else to the handler in
-        force before the runs, else a Python ``RuntimeWarning``."""
+        force before the runs, else printed to stderr as MuJoCo's default handler does (without
+        its log file). It must not raise: an exception cannot pass back through MuJoCo's C code
+        (the process aborts), so no Python warning here, which a ``-W error`` filter would raise."""
         said = getattr(self.local, "said", None)
         if said is not None:
             said.append(message)
         elif self.before is not None:  # a thread that is not running the loop
             self.before(message)
-        else:
-            warnings.warn(f"MuJoCo: {message}", RuntimeWarning, stacklevel=2)
+        elif sys.stderr is not None:
+            print(f"MuJoCo warning: {message}", file=sys.stderr)
 
     @contextmanager
     def to(self, said: list[str]) -> Iterator[None]:

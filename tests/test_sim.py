@@ -199,6 +199,51 @@ def test_runs_in_threads_keep_their_own_mujoco_warnings(arm, tmp_path, monkeypat
     assert mujoco.get_mju_user_warning() is None
 
 
+OTHER_THREAD_WARNS = r"""
+import threading, warnings
+import numpy as np
+import labsupport, mujoco
+from labsupport import sim
+from labsupport.plants import load_model
+
+model, _ = load_model("planar_2r")
+inside, go = threading.Event(), threading.Event()
+
+def waits(model, data):
+    if data.time == 0.0:
+        inside.set()
+        go.wait(10)
+    return np.zeros(2)
+
+run = threading.Thread(target=sim.simulate, args=(model, mujoco.MjData(model), waits, 0.01))
+run.start()
+inside.wait(10)
+warnings.simplefilter("error")  # as under pytest -W error
+data = mujoco.MjData(model)
+data.qvel[0] = np.nan
+mujoco.mj_step(model, data)  # warns in this thread, which runs no loop
+go.set()
+run.join()
+print("survived", mujoco.get_mju_user_warning())
+"""
+
+
+def test_a_warning_outside_the_runs_is_printed_and_never_raised_into_mujoco(tmp_path):
+    """While a run goes on in one thread, MuJoCo warns in another that runs no loop: the message
+    is printed to stderr as MuJoCo's default handler would (no MUJOCO_LOG.TXT), even where
+    Python warnings are errors: an exception raised inside MuJoCo's handler aborts the process."""
+    import subprocess
+    import sys
+
+    out = subprocess.run(
+        [sys.executable, "-c", OTHER_THREAD_WARNS], cwd=tmp_path, capture_output=True, text=True, timeout=120
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip() == "survived None"
+    assert "MuJoCo warning: Nan, Inf or huge value in QVEL at DOF 0" in out.stderr
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
 def test_non_finite_torque_is_reported(arm):
     model, data = arm
     with pytest.raises(sim.SimulationDiverged, match="controller returned tau"):
