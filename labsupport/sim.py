@@ -28,7 +28,8 @@ so it differs between MuJoCo versions; the speed bound catches it at the same st
 While the loop runs, MuJoCo's warning messages come to the loop instead of MuJoCo's default
 handler (which prints them and appends them to ``MUJOCO_LOG.TXT`` in the working directory):
 the one that stops a run is quoted in the error (it names the joint or actuator), and any
-other is shown as a Python ``RuntimeWarning`` when the run ends.
+other is shown as a Python ``RuntimeWarning`` when the run ends. Runs in several threads each
+get their own thread's messages.
 """
 
 from __future__ import annotations
@@ -401,9 +402,7 @@ class _WarningRoute:
                     self.before = None
 
 
-#: While the loop runs, MuJoCo's warning messages are collected for the loop instead of going
-#: to MuJoCo's default handler, which prints them and appends them to ``MUJOCO_LOG.TXT`` in the
-#: working directory (a stray file in a student's folder); the loop reports them itself.
+#: The one route of MuJoCo's warnings during runs (see the module's description).
 _MUJOCO_WARNINGS = _WarningRoute()
 
 
