@@ -40,3 +40,10 @@ def best_times(loops: dict[str, Callable[[], object]], repeats: int) -> dict[str
         for name, fn in loops.items():
             times[name] = min(times[name], seconds(fn))
     return times
+
+
+def law_budget_us(target_ratio: float, bare_rate: float, loop_rate: float) -> float:
+    r"""Microseconds per step a control law may add to a loop and still reach ``target_ratio``
+    of bare ``mj_step``: :math:`1/(r\,f_{\text{bare}}) - 1/f_{\text{loop}}`, with the loop's own
+    rate :math:`f_{\text{loop}}` measured with the law replaced by replayed torques."""
+    return 1e6 * (1.0 / (target_ratio * bare_rate) - 1.0 / loop_rate)
