@@ -48,9 +48,26 @@ def cumulative_effort(t, tau):
     return cumulative_trapezoid(sq, np.asarray(t, dtype=float), initial=0.0)
 
 
+def _step_response(y, t=None) -> tuple[np.ndarray, np.ndarray | None]:
+    """A step response as float arrays: ``y`` one-dimensional with at least one sample and, if
+    given, times ``t`` of the same length; a ``ValueError`` otherwise."""
+    y = np.asarray(y, dtype=float)
+    t = None if t is None else np.asarray(t, dtype=float)
+    if y.ndim != 1:
+        raise ValueError(
+            f"a step response is one coordinate over time (a 1-D array), got y of shape {y.shape}; "
+            "pick one column, for example log.q[:, 0]"
+        )
+    if y.size == 0:
+        raise ValueError("the step response has no samples (y is empty)")
+    if t is not None and t.shape != y.shape:
+        raise ValueError(f"t and y must have one time per sample, got t of shape {t.shape} and y of shape {y.shape}")
+    return y, t
+
+
 def overshoot(y, final: float, initial: float) -> float:
     r"""Percent overshoot of a step response, :math:`100\,\max_t (y - y_f)/(y_f - y_0)`, 0 if none."""
-    y = np.asarray(y, dtype=float)
+    y, _ = _step_response(y)
     span = final - initial
     if span == 0:
         raise ValueError("final and initial are equal: a step of zero size has no overshoot")
@@ -62,7 +79,7 @@ def settling_time(t, y, final: float, initial: float, band: float = 0.02) -> flo
 
     Returns ``nan`` if the response is still outside the band at the end of the record.
     """
-    t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
+    y, t = _step_response(y, t)
     outside = np.abs(y - final) > band * abs(final - initial)
     if not outside.any():
         return float(t[0])

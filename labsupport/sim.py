@@ -44,7 +44,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from labsupport import dynamics, validate
+from labsupport import dynamics, trajectories, validate
 from labsupport.trajectories import Reference
 
 Controller = Callable[[mujoco.MjModel, mujoco.MjData], np.ndarray]
@@ -183,8 +183,9 @@ def simulate(
             the time as ``data.time``. It may return the same (preallocated) array every step.
         q0, qdot0: initial state; they override the keyframe's when both are given.
         site: name of the end-effector site to record (and to compare with ``reference``).
-        reference: ``reference(t)`` giving the desired site position, recorded with the error
-            (vectorised over an array of times if possible; it is evaluated after the run).
+        reference: ``reference(t)`` returning a :class:`~labsupport.trajectories.Reference`, whose
+            ``pos`` is the desired site position, recorded with the error (vectorised over an
+            array of times if possible; it is evaluated after the run).
         torque_limit: scalar or ``(nu,)`` symmetric limit; torques are clipped to it.
         log_after_step: record the state *after* the step beside the reference and torque of
             the step's start, as the lab's loops do (the reference then leads the state by one
@@ -427,12 +428,12 @@ def _evaluate(reference, t) -> np.ndarray:
     """Reference positions at the times ``t``, shape ``(len(t), d)``: one vectorised call when
     possible, else one call per time."""
     try:
-        pos = np.asarray(reference(t).pos, dtype=float)
+        pos = trajectories.evaluate(reference, t).pos
         if pos.shape[:1] == (len(t),):
             return pos.reshape(len(t), -1)
     except (ValueError, TypeError):
         pass
-    return np.array([np.atleast_1d(reference(float(tk)).pos) for tk in t], dtype=float).reshape(len(t), -1)
+    return np.array([np.atleast_1d(trajectories.evaluate(reference, float(tk)).pos) for tk in t]).reshape(len(t), -1)
 
 
 def site_poses(model: mujoco.MjModel, q: np.ndarray, site: str | int) -> tuple[np.ndarray, np.ndarray]:

@@ -23,6 +23,20 @@ class Reference(NamedTuple):
     acc: np.ndarray | float
 
 
+def evaluate(reference: Callable, t) -> Reference:
+    """``reference(t)`` with its parts as float arrays; a ``ValueError`` that says what to return
+    when the function returns anything but a :class:`Reference` (a bare position array would
+    otherwise be read as position, velocity and acceleration, one per entry)."""
+    result = reference(t)
+    if not isinstance(result, Reference):
+        raise ValueError(
+            "a reference function must return trajectories.Reference(pos, vel, acc), the desired "
+            f"position, velocity and acceleration at t, but it returned {type(result).__name__} "
+            f"{validate.short(result)}; for a fixed target x use Reference(x, np.zeros_like(x), np.zeros_like(x))"
+        )
+    return Reference(*(np.asarray(part, dtype=float) for part in result))
+
+
 def versine(t, c: float, amplitude: float = np.pi / 4) -> Reference:
     r"""Raised-cosine move of the lab's feedforward tasks, for :math:`0 \le t \le \pi`:
 
@@ -131,8 +145,9 @@ class SampledReference:
     offset: float = 0.0
 
     def index(self, t) -> int:
-        """Index of the grid point nearest ``t``; ``ValueError`` past the sampled span."""
-        k = int(t / self.dt + 0.5)
+        """Index of the grid point nearest ``t``; ``ValueError`` for a time that is not a finite
+        number or lies past the sampled span."""
+        k = int(validate.number("t", t) / self.dt + 0.5)
         if not 0 <= k < len(self.pos):
             raise ValueError(
                 f"t = {t!r} s is outside the sampled reference "
@@ -142,9 +157,12 @@ class SampledReference:
 
     def at(self, t) -> Reference:
         """``Reference(pos, vel, acc)`` at the grid point nearest ``t``."""
-        k = int(t / self.dt + 0.5)
+        try:
+            k = int(t / self.dt + 0.5)
+        except (TypeError, ValueError, OverflowError):  # not a finite number
+            k = -1
         if not 0 <= k < len(self.pos):
-            self.index(t)  # raises, naming the sampled span
+            k = self.index(t)  # the careful path: raises, saying why
         return Reference(self.pos[k], self.vel[k], self.acc[k])
 
     def __call__(self, t) -> Reference:
@@ -161,19 +179,20 @@ def sample(
     r"""Sample ``reference(t)`` on :math:`t_k = k\,\Delta t + \text{offset}`, :math:`0 \le k\,\Delta t \le`
     ``duration`` plus two steps (the lab's loops take one step more than ``duration / dt``).
 
-    ``reference`` is called once on the array of times (all references of this module are
-    vectorised); one that only takes a float is called once per time instead.
+    ``reference`` returns a :class:`Reference`. It is called once on the array of times (all
+    references of this module are vectorised); one that only takes a float is called once per
+    time instead.
     """
     dt = validate.number("dt", dt, positive=True)
     duration = validate.number("duration", duration, nonnegative=True)
     offset = validate.number("offset", offset)
     t = np.arange(int(round(duration / dt)) + 2) * dt + offset
     try:
-        ref = Reference(*(np.asarray(a, dtype=float) for a in reference(t)))
+        ref = evaluate(reference, t)
         if ref.pos.shape[:1] != t.shape:
             raise ValueError
     except (ValueError, TypeError):
-        rows = [Reference(*(np.asarray(a, dtype=float) for a in reference(float(tk)))) for tk in t]
+        rows = [evaluate(reference, float(tk)) for tk in t]
         ref = Reference(*(np.array(parts) for parts in zip(*rows, strict=True)))
     return SampledReference(dt, *(np.ascontiguousarray(a) for a in ref), offset)
 

@@ -36,9 +36,9 @@ def vector(name: str, value, shape) -> np.ndarray:
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be numbers of shape {shape}, got {value!r}") from None
     if array.shape != shape:
-        raise ValueError(f"{name} must have shape {shape}, got shape {array.shape}: {_short(value)}")
+        raise ValueError(f"{name} must have shape {shape}, got shape {array.shape}: {short(value)}")
     if not np.all(np.isfinite(array)):
-        raise ValueError(f"{name} must be finite, got {_short(array)}")
+        raise ValueError(f"{name} must be finite, got {short(array)}")
     return array
 
 
@@ -53,7 +53,7 @@ def number(name: str, value, *, positive: bool = False, nonnegative: bool = Fals
     try:
         result = float(np.asarray(value, dtype=float).reshape(()))
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a single real number, got {_short(value)}") from None
+        raise ValueError(f"{name} must be a single real number, got {short(value)}") from None
     if not np.isfinite(result):
         raise ValueError(f"{name} must be finite, got {value!r}")
     if positive and not result > 0:
@@ -63,7 +63,8 @@ def number(name: str, value, *, positive: bool = False, nonnegative: bool = Fals
     return result
 
 
-def _short(value) -> str:
+def short(value) -> str:
+    """``value`` for an error message: 4 digits, long arrays elided, 200 characters at most."""
     with np.printoptions(precision=4, threshold=12, edgeitems=3):
         text = repr(value) if not isinstance(value, np.ndarray) else np.array2string(value)
     return text if len(text) <= 200 else text[:197] + "..."

@@ -427,6 +427,31 @@ def test_sample_accepts_scalar_only_functions():
     np.testing.assert_allclose(sampled.at(0.1), [np.sin(0.1), np.cos(0.1), -np.sin(0.1)], atol=1e-12)
 
 
+def test_a_reference_that_returns_a_bare_position_is_refused_not_misread():
+    """``sample`` used to unpack a returned position (x, y, z) as position x, velocity y and
+    acceleration z without a word; ``simulate`` failed with an AttributeError after the run."""
+    target = np.array([0.4, 0.3, 0.2])
+    with pytest.raises(ValueError, match=r"must return trajectories.Reference\(pos, vel, acc\).*ndarray"):
+        sample(lambda t: target, 0.01, 0.5)
+    with pytest.raises(ValueError, match="returned NoneType"):
+        sample(lambda t: None, 0.01, 0.5)
+    fixed = sample(lambda t: Reference(target, np.zeros_like(target), np.zeros_like(target)), 0.01, 0.5)
+    np.testing.assert_array_equal(fixed.at(0.25).pos, target)
+
+
+def test_simulate_refuses_a_reference_that_returns_a_bare_position(arm):
+    model, data = arm
+    with pytest.raises(ValueError, match=r"must return trajectories.Reference"):
+        sim.simulate(model, data, lambda m, d: np.zeros(2), 0.01, site="end_effector", reference=lambda t: [0.5, 0.2])
+
+
+@pytest.mark.parametrize("t", [float("nan"), float("inf"), "soon", None])
+def test_sampled_reference_names_a_time_that_is_not_a_number(t):
+    sampled = sample(lambda t: circle_2d(t, (0.5, 0.2), 0.15, 6.0), 0.002, 1.0)
+    with pytest.raises(ValueError, match="t must be"):
+        sampled.at(t)
+
+
 def test_validate_names_the_argument_and_what_was_wrong():
     np.testing.assert_array_equal(validate.vector("q", [1, 2], (2,)), [1.0, 2.0])
     with pytest.raises(ValueError, match=r"q must have shape \(2,\), got shape \(3,\)"):

@@ -146,6 +146,17 @@ def test_rms_of_nothing_is_refused_with_a_reason():
             metrics.rms_norm(empty)
 
 
+def test_step_metrics_refuse_what_is_not_one_response():
+    """``settling_time`` with fewer values than times used to answer with a number."""
+    t = np.linspace(0.0, 2.0, 5)
+    with pytest.raises(ValueError, match="one time per sample"):
+        metrics.settling_time(t, np.ones(4), 1.0, 0.0)
+    with pytest.raises(ValueError, match=r"pick one column, for example log.q\[:, 0\]"):
+        metrics.overshoot(np.ones((5, 2)), 1.0, 0.0)
+    with pytest.raises(ValueError, match="no samples"):
+        metrics.overshoot([], 1.0, 0.0)
+
+
 @pytest.mark.parametrize(
     "kwargs,word", [({"M": 0.0}, "M"), ({"M": -1.0}, "M"), ({"b": -0.1}, "b"), ({"m": float("nan")}, "m")]
 )
