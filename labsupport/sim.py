@@ -228,6 +228,8 @@ def simulate(
         )
     reset(model, data, q0, qdot0, keyframe=keyframe, forward=not lab_timing)
     site_id = -1 if site is None else dynamics.site_id(model, site)
+    if reference is not None:  # checked before the run, which would otherwise be lost to it
+        _check_reference(reference, data.time, 3 if site_id >= 0 else 0)
     nu = model.nu
     limit = None
     if torque_limit is not None:
@@ -299,11 +301,6 @@ def simulate(
         ee, ee_rot = site_poses(model, q, site_id)
     if reference is not None:
         ref = _evaluate(reference, t_ctrl)
-        if ref.shape[1] > ee.shape[1]:
-            raise ValueError(
-                f"the reference has {ref.shape[1]} components; a site position has "
-                f"{ee.shape[1]} (pass site= to compare the reference with a site)"
-            )
         err = ref - ee[:, : ref.shape[1]]
     else:
         ref = err = np.empty((nsteps, 0))
@@ -422,6 +419,17 @@ def _check_runaway(t, q, qdot):
             "running away"
         )
         raise SimulationDiverged(float(t[k]), q[k], qdot[k], reason)
+
+
+def _check_reference(reference, t: float, site_dims: int) -> None:
+    """``ValueError`` unless ``reference(t)`` is a :class:`Reference` whose position a site
+    position of ``site_dims`` coordinates can be compared with."""
+    d = np.size(trajectories.evaluate(reference, t).pos)
+    if d > site_dims:
+        raise ValueError(
+            f"the reference has {d} components; a site position has {site_dims} "
+            "(pass site= to compare the reference with a site)"
+        )
 
 
 def _evaluate(reference, t) -> np.ndarray:

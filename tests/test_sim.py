@@ -439,10 +439,26 @@ def test_a_reference_that_returns_a_bare_position_is_refused_not_misread():
     np.testing.assert_array_equal(fixed.at(0.25).pos, target)
 
 
-def test_simulate_refuses_a_reference_that_returns_a_bare_position(arm):
+@pytest.mark.parametrize(
+    ("site", "reference", "message"),
+    [
+        ("end_effector", lambda t: [0.5, 0.2], r"must return trajectories.Reference"),
+        ("end_effector", lambda t: Reference(*np.zeros((3, 4))), "4 components; a site position has 3"),
+        (None, lambda t: circle_2d(t, (0.5, 0.2), 0.15, 6.0), "pass site="),
+    ],
+)
+def test_simulate_refuses_a_bad_reference_before_the_run(arm, site, reference, message):
+    """The reference is evaluated after the run; a bad one used to fail only then, the run lost."""
     model, data = arm
-    with pytest.raises(ValueError, match=r"must return trajectories.Reference"):
-        sim.simulate(model, data, lambda m, d: np.zeros(2), 0.01, site="end_effector", reference=lambda t: [0.5, 0.2])
+    calls = []
+
+    def controller(model, data):
+        calls.append(data.time)
+        return np.zeros(2)
+
+    with pytest.raises(ValueError, match=message):
+        sim.simulate(model, data, controller, 0.01, site=site, reference=reference)
+    assert calls == []
 
 
 @pytest.mark.parametrize("t", [float("nan"), float("inf"), "soon", None])
