@@ -172,6 +172,8 @@ def _after(log, after: float) -> np.ndarray:
 
 def rms_position_error(log, after: float = 0.0) -> float:
     r"""RMS of the site's position error norm over ``t >= after`` [m], from ``log.err``."""
+    if log.err.shape[1] == 0:
+        raise ValueError("the log has no position error: pass site= and reference= to simulate to record one")
     return rms_norm(log.err[_after(log, after)])
 
 
@@ -196,6 +198,12 @@ def saturation(log, applied) -> np.ndarray:
     """(N, nu) True where the actuators exerted another torque than the controller asked
     (a force or command limit bound); ``applied`` is the exerted torque, e.g.
     :func:`labsupport.actuators.servo_force` of the log."""
+    applied = np.asarray(applied, dtype=float)
+    if applied.shape != log.tau.shape:
+        raise ValueError(
+            f"applied must hold one exerted torque per step and actuator, shape {log.tau.shape} as log.tau, "
+            f"got shape {applied.shape}"
+        )
     return ~np.isclose(applied, log.tau, rtol=1e-9, atol=1e-9)
 
 

@@ -153,6 +153,8 @@ def model_path(name: str):
     Resolved inside the installed package, so it works from any working directory.
     """
     root = resources.files("labsupport.models")
+    if not isinstance(name, str):
+        raise ValueError(f"a model is named by a string, such as 'planar_2r', got {name!r}")
     path = root / (name if name.endswith(".xml") else f"{name}.xml")
     if not path.is_file():
         shipped = sorted(p.name[:-4] for p in root.iterdir() if p.name.endswith(".xml"))

@@ -16,6 +16,7 @@ from cycler import cycler
 from matplotlib import rcParamsDefault
 from matplotlib.figure import Figure
 
+from labsupport import validate
 from labsupport.metrics import cumulative_effort
 
 #: Successive curves of a panel differ in line style or marker as well as in colour (WCAG 2.1,
@@ -247,6 +248,9 @@ def frame_indices(n_samples: int, dt: float, fps: float, speed: float = 1.0) -> 
     """Which samples (spaced ``dt`` seconds) to show for a video at ``fps`` played ``speed`` times real time."""
     if n_samples <= 0:
         raise ValueError("there are no samples to animate")
+    fps = validate.number("fps", fps, positive=True)
+    dt = validate.number("dt", dt, positive=True)
+    speed = validate.number("speed", speed, positive=True)
     stride = max(1, int(round(speed / (fps * dt))))
     return np.arange(0, n_samples, stride)
 

@@ -121,11 +121,17 @@ def render_run(
     ``progress`` is true; in a notebook it is erased when the video is done.
 
     Raises:
-        ValueError: ``fps`` outside (0, 60], a camera the model does not have, or a reference
-            of more than 3 columns.
+        ValueError: ``fps`` outside (0, 60], a camera the model does not have, a log of another
+            model, or a reference of more than 3 columns.
     """
     if not (np.isfinite(fps) and 0 < fps <= 60):
         raise ValueError(f"fps must be in (0, 60], got {fps!r}")
+    if log.q.shape[1:] != (model.nq,) or log.site >= model.nsite:
+        raise ValueError(
+            f"this log does not belong to this model: its rows hold {log.q.shape[-1]} joint positions "
+            f"(and site {log.site}), the model has nq = {model.nq} (and {model.nsite} sites); "
+            "replay a log with the model that produced it"
+        )
     camera = _camera_id(model, camera)
     dt = model.opt.timestep
     n = len(log.t)

@@ -14,7 +14,7 @@ import sys
 import numpy as np
 import pytest
 
-from labsupport import gl, render
+from labsupport import gl, plots, render
 
 SCRIPT = r"""
 import json, os, sys
@@ -221,6 +221,11 @@ def test_render_names_the_cameras_and_refuses_a_reference_beyond_3d():
     wide = dataclasses.replace(log, ref=np.zeros((len(log.t), 4)))
     with pytest.raises(ValueError, match="at most 3 coordinates"):
         render.render_run(model, wide)
+    single, _ = load_model("single_joint")  # a log of another model: NumPy's broadcast error before
+    with pytest.raises(ValueError, match="this log does not belong to this model: its rows hold 2 joint positions"):
+        render.render_run(single, log)
+    with pytest.raises(ValueError, match="fps must be positive"):
+        plots.frame_indices(len(log.t), model.opt.timestep, fps=0)
 
 
 DEFAULTS_SCRIPT = r"""

@@ -5,7 +5,7 @@ import pytest
 
 from labsupport import gains, metrics, sim
 from labsupport.controllers.single_joint import computed_torque, feedforward_torque, pd_torque, pi_speed_torque
-from labsupport.plants import SingleJoint
+from labsupport.plants import SingleJoint, load_model
 from labsupport.trajectories import sinusoid, versine
 
 HORIZONTAL = SingleJoint(g=0.0)
@@ -155,6 +155,20 @@ def test_step_metrics_refuse_what_is_not_one_response():
         metrics.overshoot(np.ones((5, 2)), 1.0, 0.0)
     with pytest.raises(ValueError, match="no samples"):
         metrics.overshoot([], 1.0, 0.0)
+
+
+def test_log_metrics_say_what_the_log_lacks():
+    """A log without a reference used to give "no samples to take the RMS of"; an ``applied``
+    torque of the wrong shape was broadcast into a report of limits hit at every step."""
+    model, data = load_model("single_joint")
+    log = sim.simulate(model, data, lambda model, data: np.zeros(1), 0.05)
+    with pytest.raises(ValueError, match="no position error: pass site= and reference="):
+        metrics.rms_position_error(log)
+    with pytest.raises(ValueError, match=r"shape \(50, 1\) as log.tau, got shape \(2,\)"):
+        metrics.saturation_report(log, np.zeros(2))
+    assert metrics.saturation_report(log, np.zeros((50, 1))) == ""
+    with pytest.raises(ValueError, match="a model is named by a string"):
+        load_model(None)
 
 
 @pytest.mark.parametrize(
