@@ -18,7 +18,17 @@ import labsupport
 import labsupport.controllers.joint_space as joint_space_alias
 from labsupport.dynamics import bias_forces, mass_matrix, site_jacobian, site_jdot_qdot
 from labsupport.grading import PUBLIC_SEED, check, common, problem1, problem2, registry, rules
-from labsupport.grading.feedback import FAIL, NOT_IMPLEMENTED, PASS, DirectProbe, Probe, State, show_beside, show_pair
+from labsupport.grading.feedback import (
+    FAIL,
+    NOT_IMPLEMENTED,
+    PASS,
+    DirectProbe,
+    Probe,
+    State,
+    StudentError,
+    show_beside,
+    show_pair,
+)
 from labsupport.grading.stability import stiff_damping
 from labsupport.kinematics.planar_2r import inverse_kinematics as planar_ik
 
@@ -253,6 +263,28 @@ def ct_variant(spring=1.0, damping=-1.0, mass=True, bias=1.0, scale=1.0, damping
 def test_ct_mistakes_are_named(fn, score, words):
     result = grade("p1_ct", ct_joint_torque=fn)
     assert result.score == score and words in result.message, result
+
+
+def test_check_names_a_wrong_call():
+    with pytest.raises(ValueError, match=r"no check named 'p3'; the checks are \['p1_ct', 'p1_ik'"):
+        check("p3", {})
+    with pytest.raises(ValueError, match=r"call check\('p1_pd', globals\(\)\)"):
+        check("p1_pd", None)
+
+
+def test_complex_numbers_are_named_in_the_notebook_and_in_the_batch_grader(master1):
+    """(1 - c**2)**0.5 with |c| > 1 is complex in Python; NumPy used to drop the imaginary part
+    with a ComplexWarning, and the check then compared the real part."""
+    ik = master1["ik_3r"]
+    complex_ik = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, elbow_up) + 0j)
+    assert complex_ik.score == 0 and "ik_3r returned complex numbers" in complex_ik.message, complex_ik
+    pd = grade("p1_pd", pd_torque=lambda *args: [1j, 0.0, 0.0])
+    assert pd.score == 0 and "(1 - c**2)**0.5" in pd.message, pd
+    from labsupport.instructor import judge, sandbox
+
+    assert sandbox._encode([1j, 0.0, 0.0]) == {"complex": True}
+    with pytest.raises(StudentError, match="pd_torque returned complex numbers"):
+        judge._decode("pd_torque", sandbox._encode(np.array([0.5 + 0j, 1, 2])), call=True)
 
 
 def test_ik_mistakes_are_named(master1):

@@ -25,7 +25,7 @@ Modules:
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 from labsupport.grading.feedback import NotImplementedYet, Result, StudentError, as_vector
 
@@ -50,6 +50,8 @@ def check(name: str, namespace: dict) -> Result | None:
     if os.environ.get(BATCH_ENV):  # in the batch sandbox the check modules are not even present
         print(f"[{name}] checked separately by the batch grader")
         return None
+    if not isinstance(namespace, Mapping):
+        raise ValueError(f"check needs the notebook's variables: call check({name!r}, globals())")
     checks = registry()
     if name not in checks:
         raise ValueError(f"no check named {name!r}; the checks are {sorted(checks)}")

@@ -135,6 +135,23 @@ class State:
     t: float = 0.0
 
 
+def is_complex(value) -> bool:
+    """Whether ``value`` holds complex numbers (False for anything NumPy cannot read)."""
+    try:
+        return bool(np.iscomplexobj(value))
+    except Exception:  # the student's value may be anything
+        return False
+
+
+def complex_message(fname: str) -> str:
+    """What to say when ``fname`` returned complex numbers (in the notebook and in the batch grader)."""
+    return (
+        f"{fname} returned complex numbers, but angles and torques are real. In Python a power of a "
+        "negative number, such as (1 - c**2)**0.5 with |c| > 1, is complex: check that the argument "
+        "of each square root (or arccos) stays in its range"
+    )
+
+
 def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.ndarray:
     """Check a returned value is a finite vector of ``size`` numbers; say plainly what is wrong if not.
 
@@ -145,6 +162,8 @@ def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.nda
     if value is None:
         verb = "is" if what == "value" else "returned"
         raise NotImplementedYet(f"{fname} {verb} None: not implemented yet")
+    if is_complex(value):
+        raise StudentError(complex_message(fname))
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
@@ -216,6 +235,8 @@ class DirectProbe(Probe):
             raise StudentError(f"{fname} raised {type(err).__name__}: {err}") from None
         if used is not None:
             raise ForbiddenCall(forbidden_message(used))
+        if is_complex(value):
+            raise StudentError(complex_message(fname))
         return _plain(value)
 
     def get(self, name: str):

@@ -85,7 +85,7 @@ def _ik_problem(model, q, x, up: bool) -> str | None:
                 f"{err:.4g} m from the target {x}: check the planar 2R solve for q2, q3"
             )
         return (
-            f"the pan angle q1 = {q[0]:.4f} rad, but the target {x} has azimuth atan2(y, x) = {azimuth:.4f} rad; "
+            f"the pan angle q1 = {q[0]:.5g} rad, but the target {x} has azimuth atan2(y, x) = {azimuth:.4f} rad; "
             f"the end effector lands {err:.4g} m away"
         )
 

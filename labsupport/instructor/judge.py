@@ -40,6 +40,7 @@ from labsupport.grading.feedback import (
     State,
     StudentError,
     StudentTimeout,
+    complex_message,
     failed,
 )
 from labsupport.instructor import isolation
@@ -326,6 +327,8 @@ def _decode(name: str, answer: dict, call: bool = False):
         raise StudentError(f"{name} raised {answer['raised']}")
     if answer.get("none"):
         return None
+    if answer.get("complex"):
+        raise StudentError(complex_message(name))
     if "array" in answer:
         try:
             return np.asarray(answer["array"], dtype=float).reshape(answer["shape"])

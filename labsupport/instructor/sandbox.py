@@ -95,6 +95,8 @@ def _encode(value):
     if isinstance(value, (str, bytes, dict)) or callable(value):
         return {"type": type(value).__name__}
     try:
+        if np.iscomplexobj(value):
+            return {"complex": True}
         arr = np.asarray(value, dtype=float)
     except Exception:
         return {"type": type(value).__name__}
