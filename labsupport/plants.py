@@ -109,6 +109,7 @@ class SingleJoint:
             tau = torque(t, x)
             if tau is None:
                 raise _BadTorque(f"the torque function returned None at t = {t:.4f} s")
+            validate.real(f"the torque function (at t = {t:.4f} s) returned", tau)
             tau_arr = np.asarray(tau, dtype=float)
             if tau_arr.size != 1:
                 raise _BadTorque(f"tau must be a scalar, got shape {tau_arr.shape} at t = {t:.4f} s")

@@ -264,7 +264,7 @@ def simulate(
                 tau = controller(model, data)
             except ValueError as err:
                 raise _controller_failed(err, model, data) from err
-            if type(tau) is not np.ndarray or tau.shape != (nu,):
+            if type(tau) is not np.ndarray or tau.shape != (nu,) or tau.dtype != np.float64:
                 tau = _as_torque(tau, nu)
             if limit is not None:
                 tau = np.clip(tau, neg_limit, limit, out=clipped)
@@ -323,6 +323,7 @@ def _as_torque(tau, nu: int) -> np.ndarray:
     """The controller's return value as a ``(nu,)`` float array, or a clear error."""
     if tau is None:
         raise ValueError(f"the controller returned None; it must return a torque of shape ({nu},)")
+    validate.real("the controller returned", tau)
     tau = np.asarray(tau, dtype=float)
     if tau.size != nu:
         raise ValueError(f"the controller returned a torque of shape {tau.shape}, expected ({nu},)")

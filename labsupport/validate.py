@@ -63,6 +63,22 @@ def number(name: str, value, *, positive: bool = False, nonnegative: bool = Fals
     return result
 
 
+def complex_message(returned: str) -> str:
+    """The explanation for a function that ``returned`` (say, "pd_torque returned") complex numbers."""
+    return (
+        f"{returned} complex numbers, but angles and torques are real. In Python a power of a negative "
+        "number, such as (1 - c**2)**0.5 with |c| > 1, is complex: check that the argument of each "
+        "square root (or arccos) stays in its range"
+    )
+
+
+def real(returned: str, value) -> None:
+    """``ValueError`` (see :func:`complex_message`) if ``value``, which ``returned`` names, holds
+    complex numbers; NumPy would otherwise drop their imaginary parts with a mere warning."""
+    if np.iscomplexobj(value):
+        raise ValueError(f"{complex_message(returned)} (got {short(value)})")
+
+
 def short(value) -> str:
     """``value`` for an error message: 4 digits, long arrays elided, 200 characters at most."""
     with np.printoptions(precision=4, threshold=12, edgeitems=3):

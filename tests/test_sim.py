@@ -400,6 +400,10 @@ def test_controller_returning_none_gets_a_clear_error(arm):
     model, data = arm
     with pytest.raises(ValueError, match="returned None"):
         sim.simulate(model, data, lambda m, d: None, 0.01)
+    with pytest.raises(ValueError, match=r"controller returned complex numbers, but .* \(got \[0\.\+1\.j 0\.\+0\.j"):
+        sim.simulate(model, data, lambda m, d: np.array([1j, 0]), 0.01)  # NumPy dropped the 1j with a warning
+    as_ints = sim.simulate(model, data, lambda m, d: np.array([1, -2]), 0.01)
+    np.testing.assert_array_equal(as_ints.tau[-1], [1.0, -2.0])
 
 
 def test_sampled_reference_reads_the_samples_of_the_grid():

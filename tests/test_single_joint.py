@@ -146,6 +146,20 @@ def test_rms_of_nothing_is_refused_with_a_reason():
             metrics.rms_norm(empty)
 
 
+@pytest.mark.parametrize(
+    ("tau", "message"),
+    [
+        (None, r"the torque function returned None at t = 0\.0000 s"),
+        (np.zeros(2), r"tau must be a scalar, got shape \(2,\)"),
+        (float("nan"), "tau is nan \\(not finite\\)"),
+        (1j, r"the torque function \(at t = 0\.0000 s\) returned complex numbers, but angles and torques are real"),
+    ],
+)
+def test_the_analytic_joint_names_a_bad_torque(tau, message):
+    with pytest.raises(ValueError, match=message):
+        SingleJoint().simulate(lambda t, state: tau, 1.0)
+
+
 def test_step_metrics_refuse_what_is_not_one_response():
     """``settling_time`` with fewer values than times used to answer with a number."""
     t = np.linspace(0.0, 2.0, 5)

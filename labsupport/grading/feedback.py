@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from labsupport import validate
 from labsupport.grading.rules import ForbiddenUse, call_watched, forbidden_message, is_forbidden_message
 
 PASS, PARTIAL, FAIL, NOT_IMPLEMENTED = "pass", "partial", "fail", "not implemented yet"
@@ -145,11 +146,7 @@ def is_complex(value) -> bool:
 
 def complex_message(fname: str) -> str:
     """What to say when ``fname`` returned complex numbers (in the notebook and in the batch grader)."""
-    return (
-        f"{fname} returned complex numbers, but angles and torques are real. In Python a power of a "
-        "negative number, such as (1 - c**2)**0.5 with |c| > 1, is complex: check that the argument "
-        "of each square root (or arccos) stays in its range"
-    )
+    return validate.complex_message(f"{fname} returned")
 
 
 def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.ndarray:
