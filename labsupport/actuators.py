@@ -22,6 +22,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from labsupport import validate
+
 
 @dataclass(frozen=True)
 class Servo:
@@ -125,4 +127,4 @@ def implicit_damping(servo: Servo, timestep: float) -> np.ndarray:
     solves :math:`(M + \Delta t K_v)\,\ddot q = \tau - h` instead of :math:`M\ddot q = \tau - h`.
     A controller that wants :math:`\ddot q^*` therefore adds :math:`\Delta t K_v\,\ddot q^*`.
     """
-    return timestep * servo.kv
+    return validate.number("timestep", timestep, positive=True) * servo.kv

@@ -79,11 +79,26 @@ def mass_matrix(model: mujoco.MjModel, data: mujoco.MjData, out: np.ndarray | No
     """
     if out is None:
         out = np.zeros((model.nv, model.nv))
-    if FULLM_TAKES_DATA:
-        mujoco.mj_fullM(model, data, out)
-    else:  # MuJoCo 3.x
-        mujoco.mj_fullM(model, out, data.qM)
+    try:
+        if FULLM_TAKES_DATA:
+            mujoco.mj_fullM(model, data, out)
+        else:  # MuJoCo 3.x
+            mujoco.mj_fullM(model, out, data.qM)
+    except TypeError:
+        raise _bad_out("mass_matrix", out, (model.nv, model.nv)) from None
     return out
+
+
+def _bad_out(function: str, out, shape: tuple[int, ...]) -> ValueError:
+    """The error for an ``out`` array that MuJoCo or NumPy refused to fill."""
+    if isinstance(out, np.ndarray):
+        got = f"a {out.dtype} array of shape {out.shape}" + ("" if out.flags.c_contiguous else ", not C-contiguous")
+    else:
+        got = type(out).__name__
+    return ValueError(
+        f"{function}: out must be a C-contiguous float64 array of shape {shape}, got {got}; "
+        "or leave out= away to get a new array"
+    )
 
 
 def bias_forces(data: mujoco.MjData) -> np.ndarray:
@@ -108,10 +123,13 @@ def solve_mass(model: mujoco.MjModel, data: mujoco.MjData, rhs: np.ndarray) -> n
     """
     y = np.ascontiguousarray(rhs, dtype=float)
     x = np.empty_like(y)
-    if y.ndim == 1:  # MuJoCo solves for rows
-        mujoco.mj_solveM(model, data, x[None], y[None])
-    else:
-        mujoco.mj_solveM(model, data, x, y)
+    try:
+        if y.ndim == 1:  # MuJoCo solves for rows
+            mujoco.mj_solveM(model, data, x[None], y[None])
+        else:
+            mujoco.mj_solveM(model, data, x, y)
+    except TypeError:
+        raise ValueError(f"solve_mass: rhs must have shape ({model.nv},) or (k, {model.nv}), got {y.shape}") from None
     return x
 
 
@@ -134,7 +152,10 @@ def site_jacobian(
     sid = site_id(model, site)
     if out is None:
         out = np.zeros((6, model.nv))
-    mujoco.mj_jacSite(model, data, out[:3], out[3:], sid)
+    try:
+        mujoco.mj_jacSite(model, data, out[:3], out[3:], sid)
+    except TypeError:
+        raise _bad_out("site_jacobian", out, (6, model.nv)) from None
     return out
 
 
@@ -164,7 +185,10 @@ def site_jdot_qdot(
     sid = site_id(model, site)
     jdot = _work("jdot", (6, model.nv))
     mujoco.mj_jacDot(model, data, jdot[:3], jdot[3:], data.site_xpos[sid], model.site_bodyid[sid])
-    return np.dot(jdot, data.qvel, out=out)
+    try:
+        return np.dot(jdot, data.qvel, out=out)
+    except (TypeError, ValueError):
+        raise _bad_out("site_jdot_qdot", out, (6,)) from None
 
 
 def jacobian_solve(J: np.ndarray, rhs: np.ndarray, min_pivot: float = 1e-10) -> np.ndarray:
@@ -209,6 +233,7 @@ def task_space_inertia(model: mujoco.MjModel, data: mujoco.MjData, jac: np.ndarr
     configurations; with :math:`\lambda = 0` and a square invertible :math:`J`,
     :math:`J^\top \Lambda = M J^{-1}`.
     """
+    damping = validate.number("damping", damping, nonnegative=True)
     minv_jt = solve_mass(model, data, jac).T  # M^{-1} J^T, shape (nv, k)
     lam_inv = jac @ minv_jt
     if damping:

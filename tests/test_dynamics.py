@@ -230,6 +230,25 @@ def test_jacobian_solve_names_the_shapes_it_needs():
         dynamics.jacobian_solve(np.eye(2), np.ones(3))
 
 
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda m, d: dynamics.mass_matrix(m, d, out=np.zeros((2, 2))), r"\(3, 3\), got a float64 array of shape"),
+        (lambda m, d: dynamics.mass_matrix(m, d, out=np.zeros((3, 3), int)), "got a int64 array"),
+        (lambda m, d: dynamics.mass_matrix(m, d, out=np.zeros((3, 3), order="F")), "not C-contiguous"),
+        (lambda m, d: dynamics.site_jacobian(m, d, "tip", out=np.zeros((3, 3))), r"shape \(6, 3\), got"),
+        (lambda m, d: dynamics.site_jdot_qdot(m, d, "tip", out=np.zeros(3)), r"shape \(6,\), got"),
+        (lambda m, d: dynamics.solve_mass(m, d, np.zeros(2)), r"rhs must have shape \(3,\) or \(k, 3\), got \(2,\)"),
+        (lambda m, d: dynamics.solve_mass(m, d, np.zeros((3, 3, 3))), r"got \(3, 3, 3\)"),
+        (lambda m, d: dynamics.task_space_inertia(m, d, np.eye(3), damping=-1.0), "damping must be non-negative"),
+    ],
+)
+def test_the_helpers_name_an_array_they_cannot_fill(arm, call, message):
+    """MuJoCo's own TypeErrors (a pybind11 signature dump for a wrong dtype) used to reach the caller."""
+    with pytest.raises(ValueError, match=message):
+        call(*arm)
+
+
 def test_the_oldest_mujoco_is_the_one_pyproject_admits():
     """``pyproject.toml``'s lower bound on MuJoCo is ``dynamics.OLDEST_MUJOCO`` (the version
     `.ci/test-oldest` runs the unit tests on)."""
