@@ -219,6 +219,8 @@ def test_implicit_servo_damping_adds_dt_kv_to_the_inertia(ur):
     rng = np.random.default_rng(11)
     dt = model.opt.timestep
     np.testing.assert_allclose(implicit_damping(servo, dt), [0.8, 0.8, 0.8, 0.2, 0.2, 0.2])
+    with pytest.raises(ValueError, match="timestep must be positive"):
+        implicit_damping(servo, -dt)
     for _ in range(5):
         _random_state(model, data, rng)
         tau = rng.uniform(0.5 * servo.force_lo, 0.5 * servo.force_hi)
