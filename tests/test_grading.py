@@ -20,6 +20,7 @@ from nbclient import NotebookClient
 from labsupport.grading import PUBLIC_SEED
 from labsupport.instructor import assign, isolation
 from labsupport.instructor.batch import UNSAFE_NOTE, run_batch
+from labsupport.instructor.batch import main as batch_main
 from labsupport.instructor.judge import Budget
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -305,6 +306,32 @@ def test_refuses_without_bubblewrap(tmp_path):
     proc = _batch_cli("problem1", subs, tmp_path / "out", env=env)
     assert proc.returncode == 2
     assert "bubblewrap (bwrap) is not installed" in proc.stderr and "--unsafe-no-sandbox" in proc.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_batch_command_says_what_is_wrong_with_its_arguments(tmp_path, capsys):
+    """Each used to run and write an empty grades.csv (or, for --timeout, a batch of "timed out")."""
+    (tmp_path / "empty").mkdir()
+    nested = _submissions(tmp_path / "nested", [])
+    _submissions(nested / "sub", ["master.ipynb"])
+    (tmp_path / "submissions.zip").write_bytes(b"PK")
+    cases = {
+        ("--problem", "problem3", "empty"): "problem3.json: the problems are problem1, problem2",
+        ("--spec", "none.json", "empty"): "no autograder spec at",
+        ("--problem", "problem1", "empty"): "no .ipynb file in",
+        ("--problem", "problem1", "nested"): "its subfolders hold 1: give the folder that holds them",
+        ("--problem", "problem1", "submissions.zip"): "run python -m labsupport.instructor.canvas",
+        ("--problem", "problem1", "nested/sub", "--jobs", "0"): "--jobs must be at least 1",
+        ("--problem", "problem1", "nested/sub", "--timeout", "-5"): "--timeout must be a positive number",
+    }
+    for args, words in cases.items():
+        *options, folder = args[:3]
+        argv = [*options, str(tmp_path / folder), *args[3:], "--out", str(tmp_path / "out")]
+        if options[0] == "--spec":
+            argv[1] = str(tmp_path / argv[1])
+        with pytest.raises(SystemExit) as stop:
+            batch_main(argv)
+        assert stop.value.code == 2 and words in capsys.readouterr().err, args
     assert not (tmp_path / "out").exists()
 
 

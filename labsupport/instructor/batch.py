@@ -237,6 +237,21 @@ def _atomic_write(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
+def _check_submissions_folder(parser: argparse.ArgumentParser, folder: Path) -> None:
+    """Stop with what to do when ``folder`` is a zip, or holds no notebook at its top level."""
+    if folder.is_file() and folder.suffix == ".zip":
+        parser.error(
+            f"{folder} is a zip file: for Canvas's 'Download Submissions' zip run "
+            "python -m labsupport.instructor.canvas (see the README); otherwise unzip it into a folder"
+        )
+    if folder.is_dir() and not any(p.name.endswith(".ipynb") for p in folder.iterdir()):
+        nested = sum(1 for _ in folder.rglob("*.ipynb"))
+        parser.error(
+            f"no .ipynb file in {folder}"
+            + (f"; its subfolders hold {nested}: give the folder that holds them" if nested else "")
+        )
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description="Grade a folder of executed student notebooks into a CSV.")
     parser.add_argument("submissions", type=Path, help="folder holding the students' .ipynb files")
@@ -265,8 +280,19 @@ def main(argv=None) -> None:
     )
     args = parser.parse_args(argv)
     spec = args.spec or SPEC_DIR / f"{args.problem}.json"
+    if args.spec and not args.spec.is_file():
+        parser.error(f"no autograder spec at {args.spec}")
     if not Path(spec).is_file():
-        parser.error(f"no autograder spec at {spec}: run from the repository root, or give --spec")
+        known = sorted(p.stem for p in SPEC_DIR.glob("*.json")) if SPEC_DIR.is_dir() else []
+        parser.error(
+            f"no autograder spec for --problem {args.problem} at {spec}: "
+            + (f"the problems are {', '.join(known)}" if known else "run from the repository root, or give --spec")
+        )
+    if args.jobs is not None and args.jobs < 1:
+        parser.error(f"--jobs must be at least 1, got {args.jobs}")
+    if not args.timeout > 0:
+        parser.error(f"--timeout must be a positive number of seconds, got {args.timeout}")
+    _check_submissions_folder(parser, args.submissions)
     try:
         run_batch(
             args.submissions,
