@@ -62,6 +62,17 @@ def show_law(fn: Callable) -> None:
     display(Markdown(f"{fence}python\n{source}{fence}"))
 
 
+def text_alternative(alt, what: str = "a figure") -> str:
+    """``alt`` with its white space collapsed, or a ``ValueError`` when it cannot be a text
+    alternative (WCAG 2.1, 1.1.1): fewer than :data:`MIN_ALT_WORDS` words, or a file name."""
+    text = " ".join(str(alt or "").split())
+    if len(re.findall(r"\w+", text)) < MIN_ALT_WORDS or re.search(r"\.(png|jpe?g|svg|mp4)$", text, re.IGNORECASE):
+        raise ValueError(
+            f"{what} needs a text alternative of at least {MIN_ALT_WORDS} words that says what it shows, got {alt!r}"
+        )
+    return text
+
+
 def show_figure(figure, alt: str) -> None:
     """Show ``figure`` (a Matplotlib figure, or an RGB image array such as a rendered frame) with
     ``alt``, its text alternative (WCAG 2.1, success criterion 1.1.1).
@@ -77,11 +88,7 @@ def show_figure(figure, alt: str) -> None:
             labelled curves of one panel differ by colour alone (success criterion 1.4.1): give
             them different line styles or markers (:data:`labsupport.plots.CURVE_CYCLE` does).
     """
-    text = " ".join(str(alt).split())
-    if len(re.findall(r"\w+", text)) < MIN_ALT_WORDS or re.search(r"\.(png|jpe?g|svg)$", text, re.IGNORECASE):
-        raise ValueError(
-            f"a figure needs a text alternative of at least {MIN_ALT_WORDS} words that says what it shows, got {alt!r}"
-        )
+    text = text_alternative(alt)
     if isinstance(figure, np.ndarray):
         import mediapy
 

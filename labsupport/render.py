@@ -22,6 +22,7 @@ import mujoco
 import numpy as np
 
 from labsupport import validate
+from labsupport.book import text_alternative
 from labsupport.sim import Log, site_positions
 
 #: Blue target trace and red end-effector trace, as in the lab.
@@ -261,18 +262,17 @@ def video_html(
 
     The video waits for the reader: it starts from its controls (or Space once focused), so
     nothing on the page moves unasked (WCAG 2.1, 2.2.2), and loops once started.
-    ``description`` is the video's text alternative: the caption under it, its accessible
-    name (``aria-label``), and what a browser that cannot play it shows instead.
+    ``description`` is the video's text alternative, required as a figure's is
+    (:func:`labsupport.book.text_alternative`): the caption under it, its accessible name
+    (``aria-label``), and what a browser that cannot play it shows instead.
     """
+    text = escape(text_alternative(description, "a video"))
     frames = np.asarray(frames)
     data = mediapy.compress_video(frames, fps=fps, qp=qp)
     html = mediapy.html_from_compressed_video(data, frames.shape[2], frames.shape[1], title=title, autoplay=False)
-    if description:
-        text = escape(description)
-        html = html.replace("<video ", f'<video aria-label="{text}" ', 1)
-        html = html.replace("This browser does not support the video tag.", text, 1)
-        html = f"<figure>{html}<figcaption>{text}</figcaption></figure>"
-    return html
+    html = html.replace("<video ", f'<video aria-label="{text}" ', 1)
+    html = html.replace("This browser does not support the video tag.", text, 1)
+    return f"<figure>{html}<figcaption>{text}</figcaption></figure>"
 
 
 def show_video(
@@ -286,18 +286,19 @@ def show_run_video(
     model: mujoco.MjModel,
     log: Log,
     *,
+    description: str,
     title: str | None = None,
-    description: str | None = None,
     fps: float = 12,
     **options,
 ) -> np.ndarray | None:
     """Render ``log`` (see :func:`render_run`, which takes the same ``options``) and show it with
-    its text alternative ``description``; without a working OpenGL backend print why (and the
-    description) and return None."""
+    its text alternative ``description`` (checked before the rendering starts); without a
+    working OpenGL backend print why (and the description) and return None."""
+    description = text_alternative(description, "a video")
     try:
         frames = render_run(model, log, fps=fps, **options)
     except RenderingUnavailable as err:
-        print(f"(No video: {err})" + (f" {description}" if description else ""))
+        print(f"(No video: {err}) {description}")
         return None
     show_video(frames, fps, title, description)
     return frames

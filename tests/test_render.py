@@ -39,7 +39,8 @@ try:
     np.save(sys.argv[1], frames)
 except render.RenderingUnavailable as err:
     result["error"] = str(err)
-shown = render.show_run_video(model, log, fps=5, progress=False) if "error" in result else "skipped"
+about = "The UR5e follows the circle for one second."
+shown = render.show_run_video(model, log, description=about, fps=5, progress=False) if "error" in result else "skipped"
 result["show_returned_none"] = shown is None
 print(json.dumps(result))
 """
@@ -197,13 +198,16 @@ def test_video_has_a_text_alternative():
     assert "<figcaption>The arm &lt;moves&gt; round the circle.</figcaption>" in html
     assert "does not support the video tag" not in html
     assert 'type="video/mp4"' in html and 'width="64" height="48"' in html
+    for missing in (None, "", "run.mp4", "the arm moves"):  # a video without one used to be shown
+        with pytest.raises(ValueError, match="a video needs a text alternative of at least 5 words"):
+            render.video_html(frames, fps=6, description=missing)
 
 
 def test_video_waits_for_the_reader():
     """No video starts by itself (WCAG 2.2.2): it has controls and no autoplay attribute."""
     frames = np.zeros((4, 16, 16, 3), dtype=np.uint8)
     video = re.search(
-        r"<video[^>]*>", render.video_html(frames, fps=4, description="A still arm, four frames.")
+        r"<video[^>]*>", render.video_html(frames, fps=4, description="A still arm, in four frames.")
     ).group()
     assert " controls" in video and "autoplay" not in video
 
