@@ -72,10 +72,18 @@ def complex_message(returned: str) -> str:
     )
 
 
+def is_complex(value) -> bool:
+    """Whether ``value`` holds complex numbers (False for anything NumPy cannot read)."""
+    try:
+        return bool(np.iscomplexobj(value))
+    except Exception:  # a value returned by a student's or user's function may be anything
+        return False
+
+
 def real(returned: str, value) -> None:
     """``ValueError`` (see :func:`complex_message`) if ``value``, which ``returned`` names, holds
     complex numbers; NumPy would otherwise drop their imaginary parts with a mere warning."""
-    if np.iscomplexobj(value):
+    if is_complex(value):
         raise ValueError(f"{complex_message(returned)} (got {short(value)})")
 
 

@@ -136,14 +136,6 @@ class State:
     t: float = 0.0
 
 
-def is_complex(value) -> bool:
-    """Whether ``value`` holds complex numbers (False for anything NumPy cannot read)."""
-    try:
-        return bool(np.iscomplexobj(value))
-    except Exception:  # the student's value may be anything
-        return False
-
-
 def complex_message(fname: str) -> str:
     """What to say when ``fname`` returned complex numbers (in the notebook and in the batch grader)."""
     return validate.complex_message(f"{fname} returned")
@@ -159,7 +151,7 @@ def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.nda
     if value is None:
         verb = "is" if what == "value" else "returned"
         raise NotImplementedYet(f"{fname} {verb} None: not implemented yet")
-    if is_complex(value):
+    if validate.is_complex(value):
         raise StudentError(complex_message(fname))
     try:
         arr = np.asarray(value, dtype=float)
@@ -232,7 +224,7 @@ class DirectProbe(Probe):
             raise StudentError(f"{fname} raised {type(err).__name__}: {err}") from None
         if used is not None:
             raise ForbiddenCall(forbidden_message(used))
-        if is_complex(value):
+        if validate.is_complex(value):
             raise StudentError(complex_message(fname))
         return _plain(value)
 
