@@ -49,9 +49,8 @@ from pathlib import Path
 
 from labsupport.grading import registry
 from labsupport.instructor import isolation, judge
+from labsupport.instructor.assign import SPEC_DIR
 
-#: Where ``--problem NAME`` finds its spec, relative to the current directory (the repository root).
-SPEC_DIR = Path("tests") / "autograder"
 #: The note every row carries when the batch ran without a sandbox.
 UNSAFE_NOTE = "graded WITHOUT a sandbox (--unsafe-no-sandbox): only for submissions you trust"
 

@@ -92,8 +92,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
-#: Where ``--problem NAME`` finds its spec, relative to the repository root.
-SPEC_DIR = Path("tests") / "autograder"
+from labsupport.instructor.assign import SPEC_DIR
 
 #: Largest notebook read from the zip [bytes]; a bigger file is reported, not graded.
 MAX_NOTEBOOK_BYTES = 64 * 2**20
