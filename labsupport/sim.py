@@ -45,7 +45,6 @@ import mujoco
 import numpy as np
 
 from labsupport import dynamics, trajectories, validate
-from labsupport.trajectories import Reference
 
 Controller = Callable[[mujoco.MjModel, mujoco.MjData], np.ndarray]
 Actuation = Callable[[mujoco.MjModel, mujoco.MjData, np.ndarray], np.ndarray]
@@ -168,7 +167,7 @@ def simulate(
     q0=None,
     qdot0=None,
     site: str | None = None,
-    reference: Callable[[float], Reference] | None = None,
+    reference: Callable[[float], trajectories.Reference] | None = None,
     torque_limit=None,
     log_after_step: bool = False,
     keyframe: str | None = None,
