@@ -126,5 +126,8 @@ def implicit_damping(servo: Servo, timestep: float) -> np.ndarray:
     With ``implicitfast`` the servo's damping is evaluated at the *next* velocity, so one step
     solves :math:`(M + \Delta t K_v)\,\ddot q = \tau - h` instead of :math:`M\ddot q = \tau - h`.
     A controller that wants :math:`\ddot q^*` therefore adds :math:`\Delta t K_v\,\ddot q^*`.
+    This holds for a servo inside its force range only: at its limit the force is constant,
+    MuJoCo (3.5 and newer) integrates it without damping, and the joint moves by
+    :math:`M\ddot q = f_{\text{limit}} - h` on that step.
     """
     return validate.number("timestep", timestep, positive=True) * servo.kv

@@ -181,7 +181,7 @@ def test_a_site_id_in_range_is_taken_as_is(arm):
 
 def test_jacobian_solve_never_calls_a_nan_jacobian_singular_nor_returns_numbers():
     """Where MuJoCo's factorisation reports NaN as rank loss, the error says "not finite"; where it
-    does not (MuJoCo 3.3.6), the result is NaN, never finite numbers."""
+    does not (MuJoCo 3), the result is NaN, never finite numbers."""
     J = np.eye(3)
     J[1, 2] = np.nan
     try:
@@ -263,6 +263,6 @@ def test_a_too_old_mujoco_is_refused_with_what_to_do():
     code = "import mujoco; mujoco.__version__ = '3.2.7'; import labsupport"
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
     assert run.returncode != 0
-    assert "ImportError: labsupport needs MuJoCo 3.3.6 or newer" in run.stderr
-    assert "pip install --upgrade 'mujoco>=3.3.6,<5'" in run.stderr and "restart" in run.stderr
-    assert dynamics._version("3.10.0rc1") == (3, 10, 0) > dynamics._version("3.3.6")
+    assert "ImportError: labsupport needs MuJoCo 3.5.0 or newer" in run.stderr
+    assert "pip install --upgrade 'mujoco>=3.5.0,<5'" in run.stderr and "restart" in run.stderr
+    assert dynamics._version("3.10.0rc1") == (3, 10, 0) > dynamics._version("3.5.0")

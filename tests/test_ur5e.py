@@ -234,6 +234,29 @@ def test_implicit_servo_damping_adds_dt_kv_to_the_inertia(ur):
         assert np.linalg.norm(qdd - np.linalg.solve(M, tau - h)) > 1e-3 * np.linalg.norm(qdd)
 
 
+def test_a_servo_held_at_its_force_limit_is_not_damped_implicitly(ur):
+    """At its force limit a servo's force no longer depends on the velocity, so the step is
+    plain M qdd = f_limit - h, without dt Kv (MuJoCo 3.5 and newer; older releases still damped
+    it, and Task 4's saturated start moved differently). Here every servo is clamped: joints
+    1 to 3 at their upper limit, 4 to 6 at their lower one."""
+    model, _ = ur
+    data = mujoco.MjData(model)
+    servo = Servo.from_model(model)
+    rng = np.random.default_rng(12)
+    dt = model.opt.timestep
+    push = np.array([1, 1, 1, -1, -1, -1])
+    for _ in range(5):
+        _random_state(model, data, rng)
+        data.ctrl[:] = np.clip(data.qpos + push, servo.ctrl_lo, servo.ctrl_hi)
+        mujoco.mj_forward(model, data)
+        limit = np.where(push > 0, servo.force_hi, servo.force_lo)
+        np.testing.assert_array_equal(data.actuator_force, limit)
+        M, h, v0 = mass_matrix(model, data), data.qfrc_bias.copy(), data.qvel.copy()
+        mujoco.mj_step(model, data)
+        qdd = (data.qvel - v0) / dt
+        np.testing.assert_allclose(qdd, np.linalg.solve(M, limit - h), rtol=1e-8, atol=1e-8)
+
+
 def test_the_loop_commands_the_servos_with_the_one_inversion(ur, circle):
     model, data = ur
     log = _run_tracking(model, data, circle, duration=0.2)

@@ -29,7 +29,7 @@ def test_oldest_pins_are_pyprojects_lower_bounds():
     for requirement, pin in zip(declared, pins, strict=True):
         name, bound = re.match(r"([A-Za-z0-9_.-]+)\s*(?:>=|==)\s*([0-9.]+)", requirement).groups()
         assert pin.split(";")[0] == f"{name}=={bound}", (requirement, pin)
-    assert "mujoco==3.3.6" in pins
+    assert "mujoco==3.5.0" in pins
 
 
 def test_newest_requirements_lift_every_pin_but_the_caps():
