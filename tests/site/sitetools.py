@@ -48,6 +48,9 @@ SCREENSHOT_PAGES = (
     "notebooks/task4_ur5e",
 )
 VIEWPORT = {"width": 1280, "height": 900}
+#: Window widths a reader may use: a small laptop, the narrowest window with both sidebars
+#: (the theme shows the in-page table of contents from 1200 px), a common laptop, a desktop.
+WIDTHS = (1024, 1200, 1280, 1920)
 
 
 # --------------------------------------------------------------------------------------------

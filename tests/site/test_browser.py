@@ -7,7 +7,7 @@ import re
 from pathlib import Path
 
 import pytest
-from sitetools import ARTIFACTS, SCREENSHOT_PAGES, expected_colab_url, is_notebook, require_site, toc_pages
+from sitetools import ARTIFACTS, SCREENSHOT_PAGES, WIDTHS, expected_colab_url, is_notebook, require_site, toc_pages
 
 PAGES = toc_pages()
 NOTEBOOK_PAGES = [p for p in PAGES if is_notebook(p)]
@@ -149,7 +149,7 @@ VISIBLE_SEARCH_JS = """() => [...document.querySelectorAll('.search-button-field
   .filter(e => e.offsetParent !== null && e.getBoundingClientRect().width > 0).length"""
 
 
-@pytest.mark.parametrize("width", (1024, 1280, 1920))
+@pytest.mark.parametrize("width", WIDTHS)
 def test_one_search_field(tab_page, width):
     """The sidebar holds the search field; the theme must not add a second one in a top bar."""
     visible = tab_page("notebooks/task1_single_joint", width).evaluate(VISIBLE_SEARCH_JS)
@@ -175,7 +175,7 @@ LONE_ANCHORS_JS = """() => {
 }"""
 
 
-@pytest.mark.parametrize("width", (1024, 1280, 1920))
+@pytest.mark.parametrize("width", WIDTHS)
 def test_no_empty_line_under_a_heading(on_every_page, width):
     """A heading that fills its line keeps its hidden anchor at the end of that line; an anchor
     pushed onto a line of its own leaves a gap under the heading (the phones' rule in

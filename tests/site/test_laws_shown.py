@@ -19,7 +19,7 @@ import re
 
 import pytest
 from bs4 import BeautifulSoup
-from sitetools import ROOT, require_site
+from sitetools import ROOT, WIDTHS, require_site
 
 TASKS = ["task1_single_joint", "task2_single_joint_mujoco", "task3_planar_2r", "task4_ur5e"]
 CONTROLLERS = "labsupport.controllers"
@@ -79,9 +79,6 @@ def test_every_law_run_is_shown(notebook):
         f"(use labsupport.book.show_law): {missing}"
     )
 
-
-#: Window widths a reader may use: a small laptop, a common one, a desktop.
-WIDTHS = (1024, 1280, 1920)
 
 #: Every notebook page: the Tasks and the Problems as students get them.
 PAGES = TASKS + ["problem1_reaching", "problem2_tracking"]
