@@ -101,6 +101,8 @@ EXPECTED = {
     "memoriser.ipynb": ({}, "graded", []),
     "memory_hog.ipynb": ({}, "graded", ["raised MemoryError"]),
     "fork_bomb.ipynb": ({}, "graded", NOTHING),
+    "blocks_channel.ipynb": ({}, "graded", ["waited more than 4 s without computing"]),
+    "floods_channel.ipynb": ({}, "graded", ["wrote more than 64 MiB into the grader's channel"]),
 }
 BASELINE = ("master.ipynb", "student.ipynb")
 

@@ -15,6 +15,11 @@ busy machine cannot change a score:
 
 A wall-clock backstop per submission (generous) stops a sandbox that neither computes nor
 waits measurably; that row is then marked "timed out: regrade", with no score.
+
+The sandbox answers on a pipe, one JSON line per request, tagged with the request's nonce. The
+judge reads whatever arrives, checking the limits above all the while, and never waits for a
+line to end: a submission that writes into that pipe itself (half a line, then silence; or an
+endless line, stopped at :data:`MAX_ANSWER`) cannot hold the judge or fill its memory.
 """
 
 from __future__ import annotations
@@ -75,10 +80,19 @@ DEFAULT_BUDGET = Budget()
 
 #: How far past a limit the judge lets the sandbox go before stopping it itself.
 GRACE = 5.0
+#: The most the sandbox may send back without ending a line [bytes]. An answer is a few hundred
+#: kilobytes at most (arrays are capped at ``sandbox.MAX_ELEMENTS``); more means the submission
+#: writes into the grader's channel itself.
+MAX_ANSWER = 64 << 20
 
 
 class SandboxDied(StudentError):
     """The sandbox process ended (the notebook exited, crashed, or was stopped)."""
+
+
+class ChannelFlooded(SandboxDied):
+    """The submission wrote into the grader's answer channel, more than any answer holds; the
+    sandbox was stopped."""
 
 
 class WallClockExceeded(Exception):
@@ -129,6 +143,7 @@ class SandboxProbe(Probe):
         self.depth = 2 if Path(command[0]).name == "bwrap" else 0
         self.cells, self.budget, self.max_starts = cells, budget, max_starts
         self.proc: subprocess.Popen | None = None
+        self.unread = bytearray()  # what the sandbox sent after its last complete line
         self.starts = 0
         self.wall_deadline = time.monotonic() + budget.wall
         self.check_cpu_left = float("inf")  # set by the judge for each check
@@ -143,6 +158,7 @@ class SandboxProbe(Probe):
             raise SandboxDied(f"skipped: the submission's process had to be stopped {self.starts} times")
         self.stop()
         self.starts += 1
+        self.unread = bytearray()
         limits = self.limits
         self.proc = subprocess.Popen(
             self.command,
@@ -166,9 +182,9 @@ class SandboxProbe(Probe):
                 self.budget.run,
                 per_check=False,
             )
-        except StudentTimeout as err:
+        except (StudentTimeout, ChannelFlooded) as err:
             self.start_problem = f"the notebook's cells did not finish: {err}"
-            raise StudentTimeout(self.start_problem) from None
+            raise type(err)(self.start_problem) from None
         except SandboxDied:
             self.start_problem = "the notebook ended the grading process while its cells ran (exit, crash or kill)"
             raise SandboxDied(self.start_problem) from None
@@ -202,10 +218,14 @@ class SandboxProbe(Probe):
         except (BrokenPipeError, OSError):
             self.stop()
             raise SandboxDied("the submission's process has ended") from None
-        fd = self.proc.stdout
+        fd = self.proc.stdout.fileno()
         cpu0 = busy0 = None
+        next_poll = time.monotonic() + 0.25
         while True:
-            if not select.select([fd], [], [], 0.25)[0]:
+            # The limits are checked every 0.25 s, also while the sandbox keeps sending: a
+            # submission that writes into the channel itself must not hold the judge here.
+            if time.monotonic() >= next_poll:
+                next_poll = time.monotonic() + 0.25
                 if time.monotonic() > self.wall_deadline:
                     self.stop()
                     raise WallClockExceeded(f"grading took more than {self.budget.wall:g} s of wall-clock time")
@@ -220,16 +240,8 @@ class SandboxProbe(Probe):
                 if idle > self.budget.idle + GRACE:
                     self.stop()
                     raise StudentTimeout(f"it waited more than {self.budget.idle:g} s without computing")
-                continue
-            line = fd.readline()
-            if not line:
-                self.stop()
-                raise SandboxDied("the submission's process ended")
-            try:
-                answer = json.loads(line)
-            except ValueError:
-                continue  # not ours
-            if isinstance(answer, dict) and answer.get("nonce") == nonce:
+            answer = self._answer(fd, nonce, wait=max(0.0, next_poll - time.monotonic()))
+            if answer is not None:
                 cpu = float(answer.get("cpu", 0.0)) if isinstance(answer.get("cpu"), (int, float)) else 0.0
                 if per_check:
                     self.check_cpu_left -= max(0.0, cpu - self.cpu_seen)
@@ -239,6 +251,36 @@ class SandboxProbe(Probe):
                         f"the check ran out of CPU time ({self.budget.check:g} s for the submission's code)"
                     )
                 return answer
+
+    def _answer(self, fd: int, nonce: str, wait: float) -> dict | None:
+        """The answer carrying ``nonce`` among the complete lines the sandbox has sent within
+        ``wait`` seconds, or None. Reads what is there without waiting for a line's end (a
+        submission that writes half a line into the channel cannot block the judge), keeps
+        the unfinished rest for the next call, and skips lines that are not answers."""
+        if not select.select([fd], [], [], wait)[0]:
+            return None
+        chunk = os.read(fd, 1 << 16)
+        if not chunk:
+            self.stop()
+            raise SandboxDied("the submission's process ended")
+        self.unread += chunk
+        if b"\n" not in chunk:
+            if len(self.unread) > MAX_ANSWER:
+                self.stop()
+                raise ChannelFlooded(f"it wrote more than {MAX_ANSWER >> 20} MiB into the grader's channel")
+            return None
+        *lines, rest = self.unread.split(b"\n")
+        self.unread = bytearray(rest)
+        for line in lines:
+            if nonce.encode() not in line:
+                continue  # not ours: only the answer carries the nonce
+            try:
+                answer = json.loads(line)
+            except ValueError:
+                continue  # not ours
+            if isinstance(answer, dict) and answer.get("nonce") == nonce:
+                return answer
+        return None
 
     def _server_pid(self) -> int:
         """The cell server: bubblewrap's grandchild (bubblewrap, its PID-1 init, the server), or the

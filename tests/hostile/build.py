@@ -145,6 +145,34 @@ for _ in range(100):              # a bounded fork bomb: 100 sleepers
     children.append(pid)
 """
 
+#: Silence the cell server's own timers, then write half an answer line into every descriptor
+#: (one of them is the grader's channel) and wait: a judge that reads whole lines would wait
+#: for the line's end forever.
+BLOCKS_CHANNEL = r"""
+import os, signal, time
+for timer, sig in ((signal.ITIMER_REAL, signal.SIGALRM), (signal.ITIMER_PROF, signal.SIGPROF)):
+    signal.setitimer(timer, 0)
+    signal.signal(sig, signal.SIG_IGN)
+for fd in range(3, 64):
+    try:
+        os.write(fd, b'{"nonce": ')
+    except OSError:
+        pass
+time.sleep(3600)
+"""
+
+#: Write an endless line into every descriptor: a judge that buffers it runs out of memory.
+FLOODS_CHANNEL = r"""
+import os
+chunk = b"x" * (1 << 20)
+while True:
+    for fd in range(3, 64):
+        try:
+            os.write(fd, chunk)
+        except OSError:
+            pass
+"""
+
 
 def memoriser(table: dict) -> str:
     """A notebook cell answering the public checks from a lookup table (and nothing else)."""
@@ -277,6 +305,8 @@ def hostile() -> dict[str, object]:
     out["masters_via_interpreter.ipynb"] = insert_after(s(), len(student.cells) - 1, MASTERS_VIA_INTERPRETER)
     out["memory_hog.ipynb"] = insert_after(s(), _imports(student), MEMORY_HOG)
     out["fork_bomb.ipynb"] = insert_after(s(), _imports(student), FORK_BOMB)
+    out["blocks_channel.ipynb"] = insert_after(s(), _imports(student), BLOCKS_CHANNEL)
+    out["floods_channel.ipynb"] = insert_after(s(), _imports(student), FLOODS_CHANNEL)
     nb = s()
     for fname in TODO_FUNCTIONS:
         del nb.cells[_defining(nb, fname)]
