@@ -232,7 +232,10 @@ def simulate(
     nu = model.nu
     limit = None
     if torque_limit is not None:
-        limit = validate.vector("torque_limit", np.broadcast_to(torque_limit, (nu,)), (nu,)).copy()
+        if np.ndim(torque_limit) == 0:  # one number for every actuator
+            limit = np.full(nu, validate.number("torque_limit", torque_limit))
+        else:
+            limit = validate.vector(f"torque_limit (a number, or one per actuator: nu = {nu})", torque_limit, nu).copy()
         if not np.all(limit > 0):
             raise ValueError(f"torque_limit must be positive, got {torque_limit!r}")
     neg_limit = None if limit is None else -limit

@@ -59,6 +59,27 @@ def test_torque_limit_clips(arm):
     np.testing.assert_array_equal(log.tau, np.tile([5.0, -2.0], (5, 1)))
 
 
+@pytest.mark.parametrize(
+    ("limit", "words"),
+    [
+        ([1.0, 2.0, 3.0], "one per actuator: nu = 2) must have shape (2,), got shape (3,)"),
+        (np.ones((2, 2)), "must have shape (2,), got shape (2, 2)"),
+        ([1.0, np.nan], "must be finite"),
+        ("abc", "torque_limit must be a single real number"),
+        ([3.0, -4.0], "torque_limit must be positive"),
+    ],
+)
+def test_a_torque_limit_of_the_wrong_shape_or_value_is_named(arm, limit, words):
+    """A scalar limit applies to every actuator; anything else must have one entry per actuator
+    (a (3,) limit on the 2R arm failed inside NumPy's broadcasting)."""
+    model, data = arm
+    with pytest.raises(ValueError) as err:
+        sim.simulate(model, data, constant([1.0, 1.0]), 0.01, torque_limit=limit)
+    assert words in str(err.value)
+    log = sim.simulate(model, data, constant([50.0, -50.0]), 0.01, torque_limit=3.0)
+    np.testing.assert_array_equal(log.tau, np.tile([3.0, -3.0], (len(log.t), 1)))
+
+
 def test_mujoco_data_after_an_rk4_step_belongs_to_the_new_state(arm):
     """The controllers read M and h from data as mj_step left them (as the lab does); with
     RK4 they come from its last stage and agree with a fresh mj_forward to ~1e-8."""

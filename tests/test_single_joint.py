@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
 
 from labsupport import gains, metrics, sim
 from labsupport.controllers.single_joint import computed_torque, feedforward_torque, pd_torque, pi_speed_torque
@@ -56,6 +58,26 @@ def test_pd_meets_overshoot_and_settling_specification():
     ts = metrics.settling_time(log.t, log.q[:, 0], theta_d, 0.0)
     assert abs(os - 10.0) < 0.5
     assert abs(ts - 2.0) < 0.05 * 2.0
+
+
+@pytest.mark.parametrize("zeta", [0.5, 1.0, 3.0, 20.0])
+def test_step_settling_time_matches_an_integrated_response(zeta):
+    """The exact settling time, against the ODE integrated numerically (independent of the closed
+    form): the last crossing of the 2 % band. Overdamped joints settle on their slow mode, far
+    beyond 4/(zeta wn) (before, the search stopped there and returned nan)."""
+    wn = 4.0
+
+    def rhs(t, x):
+        return [x[1], wn**2 * (1.0 - x[0]) - 2 * zeta * wn * x[1]]
+
+    t_end = 40.0 / (wn * (zeta - np.sqrt(zeta**2 - 1))) if zeta > 1 else 40.0 / (zeta * wn)
+    sol = solve_ivp(rhs, (0.0, t_end), [0.0, 0.0], dense_output=True, rtol=1e-11, atol=1e-13)
+    t = np.linspace(0.0, t_end, 400_001)
+    outside = np.flatnonzero(np.abs(1.0 - sol.sol(t)[0]) > 0.02)
+    k = outside[-1]
+    crossing = brentq(lambda s: abs(1.0 - sol.sol(s)[0]) - 0.02, t[k], t[k + 1])
+    assert gains.step_settling_time(wn, zeta) == pytest.approx(crossing, rel=1e-5)
+    assert gains.exact_settling_frequency(zeta, 2.0) == pytest.approx(wn * crossing / 2.0, rel=1e-5)
 
 
 def test_lab_envelope_rule_settles_early():
@@ -217,6 +239,8 @@ def test_bad_gain_design_inputs():
         gains.pd_gains(0.5, 5.0, 1.0, 0.1)
     with pytest.raises(ValueError, match="tau_max"):
         gains.actuator_limited_gains(0.5, 0.1, -1.0, 1.0)
+    with pytest.raises(ValueError, match="Kd must be finite"):
+        gains.second_order(0.5, 0.1, 10.0, float("nan"))
 
 
 def test_simulate_returns_the_one_log_type():
