@@ -271,8 +271,9 @@ class SandboxProbe(Probe):
             return None
         *lines, rest = self.unread.split(b"\n")
         self.unread = bytearray(rest)
+        tag = nonce.encode()
         for line in lines:
-            if nonce.encode() not in line:
+            if tag not in line:
                 continue  # not ours: only the answer carries the nonce
             try:
                 answer = json.loads(line)
