@@ -80,12 +80,14 @@ _WARNING_MEANING = {
 class SimulationDiverged(RuntimeError):
     """The simulation blew up; ``t``, ``qpos`` and ``qvel`` hold where and how."""
 
-    def __init__(self, t: float, qpos: np.ndarray, qvel: np.ndarray, reason: str):
+    #: What to do about a run that ran away: the advice unless a more specific one is given.
+    RUNAWAY_ADVICE = "Lower the gains, clip the torque, or check the controller for a sign error."
+
+    def __init__(self, t: float, qpos: np.ndarray, qvel: np.ndarray, reason: str, advice: str = RUNAWAY_ADVICE):
         self.t, self.qpos, self.qvel, self.reason = t, np.array(qpos), np.array(qvel), reason
         with np.printoptions(precision=4, suppress=True):
             super().__init__(
-                f"simulation diverged at t = {t:.4f} s ({reason}); q = {self.qpos}, qdot = {self.qvel}. "
-                "Lower the gains, clip the torque, or check the controller for a sign error."
+                f"simulation diverged at t = {t:.4f} s ({reason}); q = {self.qpos}, qdot = {self.qvel}. {advice}"
             )
 
 
@@ -352,7 +354,19 @@ def _raise_warning(k, state, q, qdot, t_start, q_start, qdot_start, tau, warn, l
         )
     if said:
         reason += f" (MuJoCo: {said[-1].split('. ')[0]})"
-    raise SimulationDiverged(float(tk), qk, qdk, reason)
+    advice = SimulationDiverged.RUNAWAY_ADVICE
+    if warn[_W_CTRL] and not np.isfinite(tau).all() and np.isfinite(qk).all() and np.isfinite(qdk).all():
+        advice = _NOT_A_NUMBER_ADVICE
+    raise SimulationDiverged(float(tk), qk, qdk, reason, advice)
+
+
+#: What to do about a torque that is not a number computed from a finite state: gains and
+#: clipping do not cause it, one of the law's inputs or operations does.
+_NOT_A_NUMBER_ADVICE = (
+    "The state is finite, so the law computed NaN or inf from something it was given or did: check "
+    "the references and gains it is passed (a None becomes NaN in a NumPy array), a division by "
+    "zero, and arrays it reads before they are filled."
+)
 
 
 class _WarningRoute:

@@ -266,9 +266,21 @@ def test_a_warning_outside_the_runs_is_printed_and_never_raised_into_mujoco(tmp_
 
 
 def test_non_finite_torque_is_reported(arm):
+    """A NaN torque from a finite state is the law's doing, not the gains': the advice says
+    where to look. A huge but finite torque keeps the advice for a run that ran away."""
     model, data = arm
-    with pytest.raises(sim.SimulationDiverged, match="controller returned tau"):
-        sim.simulate(model, data, lambda m, d: np.array([np.nan, 0.0]) if d.time > 0.01 else np.zeros(2), 0.1)
+    reference = np.array([0.3, None])  # a student's half-filled target: NumPy makes the None NaN
+
+    def pd(m, d):
+        return 50.0 * (reference.astype(float) - d.qpos) - 5.0 * d.qvel
+
+    with pytest.raises(sim.SimulationDiverged, match="controller returned tau") as err:
+        sim.simulate(model, data, pd, 0.1)
+    assert "None becomes NaN" in str(err.value) and "sign error" not in str(err.value)
+    assert err.value.t == 0.0
+    with pytest.raises(sim.SimulationDiverged, match="controller returned tau") as err:
+        sim.simulate(model, data, lambda m, d: np.array([1e12, 0.0]) if d.time > 0.01 else np.zeros(2), 0.1)
+    assert "sign error" in str(err.value) and "None" not in str(err.value)
 
 
 def test_bad_inputs_raise_value_errors(arm):
