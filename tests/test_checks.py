@@ -586,6 +586,29 @@ def test_pd_divergence_near_the_folded_arm_is_explained(master1, tmp_path, monke
     assert not (tmp_path / "MUJOCO_LOG.TXT").exists()  # the loop took MuJoCo's warnings itself
 
 
+@pytest.mark.parametrize(
+    "wrong",
+    [
+        lambda e, qdot, Kp, Kd: Kp * e + Kd * qdot,  # the damping's sign
+        lambda e, qdot, Kp, Kd: -(Kp * e - Kd * qdot),  # the whole feedback's sign
+    ],
+    ids=["damping_sign", "feedback_sign"],
+)
+def test_a_law_that_is_itself_unstable_is_not_blamed_on_the_time_step(wrong, tmp_path, monkeypatch):
+    """A sign error runs away smoothly; the loop notices when it ends, so states turning at
+    thousands of rad/s follow the divergence, where the bias forces look like a huge damping.
+    The explanation comes from the states up to the divergence only: check the signs."""
+    monkeypatch.chdir(tmp_path)
+
+    def ct(model, data, q_d, Kp, Kd):
+        return mass_matrix(model, data) @ wrong(q_d - data.qpos, data.qvel, Kp, Kd) + data.qfrc_bias
+
+    probe = DirectProbe({"ct_joint_torque": ct})
+    with pytest.raises(StudentError) as err:
+        common.run_student(probe, "ct_joint_torque", (np.array([0.8, 0.1, 1.5]), 100.0, 18.0), 2.0, problem1.Q0)
+    assert "check the signs" in str(err.value) and "not a sign error" not in str(err.value)
+
+
 # --- what a student installs holds no answer ------------------------------------------------------------
 
 

@@ -110,7 +110,7 @@ def attempt(label: str, run: Callable, controller: StudentController | None = No
         if controller is not None and model is not None:
             from labsupport.grading.stability import explain_divergence
 
-            reason = explain_divergence(model, controller.torque, controller.trace)
+            reason = explain_divergence(model, controller.torque, controller.trace, err.t)
         print(
             f"{label}: the simulation diverged at t = {err.t:.3f} s: "
             + (reason or f"{err.reason}. Lower the gains, clip the torque, or check the signs of the law.")

@@ -108,11 +108,19 @@ def stiff_damping(model: mujoco.MjModel, torque: Callable, q, qdot, t: float = 0
     )
 
 
-def explain_divergence(model: mujoco.MjModel, torque: Callable, trace: Trace, samples: int = 40) -> str | None:
-    """Why a run that diverged did: the stiff-damping explanation (:func:`stiff_damping`) at the
-    earliest recorded state where it applies (up to ``samples`` states checked, evenly spread
-    over the run), or ``None`` if the time step is not the cause."""
-    states = list(trace.states)
+def explain_divergence(
+    model: mujoco.MjModel, torque: Callable, trace: Trace, until: float, samples: int = 40
+) -> str | None:
+    """Why a run that diverged at ``until`` [s] did: the stiff-damping explanation
+    (:func:`stiff_damping`) at the earliest recorded state where it applies (up to ``samples``
+    states checked, evenly spread over the run up to ``until``), or ``None`` if the time step is
+    not the cause.
+
+    States after ``until`` are left out: the loop runs on after a run away and checks the speeds
+    when it ends, so the trace may hold states turning at thousands of rad/s, where the bias
+    forces' dependence on the velocity alone looks like a huge damping, and a law that is itself
+    unstable (a sign error) would be told it is not."""
+    states = [s for s in trace.states if s[2] <= until]
     if not states:
         return None
     for k in np.unique(np.linspace(0, len(states) - 1, min(samples, len(states))).astype(int)):
