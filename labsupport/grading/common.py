@@ -7,7 +7,10 @@ r"""Pieces the Problems' checks share, none of them a reference solution.
   the tip position) comes from MuJoCo at the test state (:func:`terms`).
 * A student's torque is judged against the formula by :func:`judge_torque`: exact within
   floating-point error, accepted as a sound approximation when only its :math:`\dot J\dot q`
-  is approximate, or matched against the typical mistakes, each named.
+  is approximate, or matched against the typical mistakes, each named. A tracking law is first
+  tested where its :math:`\dot J\dot q` term vanishes (the arm, or the reference, momentarily
+  at rest): there every other term must match exactly, so no error elsewhere can pass for an
+  approximate :math:`\dot J\dot q` at the moving states.
 * A run is the grader's own simulation of the arm under the student's controller
   (:func:`run_student`).
 """
@@ -35,6 +38,9 @@ SHOULDER = np.array([0.0, 0.0, 1.0])
 TORQUE_ATOL, TORQUE_RTOL = 1e-6, 1e-6
 #: A J̇q̇ approximated within this fraction of its size (finite differences) still counts as exact.
 JDOT_APPROX = 0.05
+#: Where the law's J̇q̇ term vanishes, the torque matches the formula within this fraction of its
+#: size: room for a numerical IK solved to about a micrometre, never for a wrong gain or term.
+STILL_RTOL = 1e-3
 #: How many control steps of a smooth motion lead up to each test state (so a function that
 #: remembers its previous call, e.g. J̇ by finite differences in time, sees what a run shows it).
 LEAD_IN = 4
@@ -186,9 +192,10 @@ class Verdict:
     jdot_error: float | None = None  # relative error of the implied J̇q̇, where it applies
 
 
-def close(a, b) -> bool:
-    """Equal within floating-point error (:data:`TORQUE_ATOL`, :data:`TORQUE_RTOL`)."""
-    return bool(np.allclose(a, b, atol=TORQUE_ATOL, rtol=TORQUE_RTOL))
+def close(a, b, rtol: float = TORQUE_RTOL) -> bool:
+    """Equal within floating-point error (:data:`TORQUE_ATOL`, and ``rtol``, by default
+    :data:`TORQUE_RTOL`)."""
+    return bool(np.allclose(a, b, atol=TORQUE_ATOL, rtol=rtol))
 
 
 def judge_torque(
@@ -197,10 +204,13 @@ def judge_torque(
     mistakes: dict[str, Mistake],
     implied_jdq: Callable[[np.ndarray], np.ndarray] | None = None,
     jdq: np.ndarray | None = None,
+    rtol: float = TORQUE_RTOL,
 ) -> Verdict:
     r"""Judge a student's torque against the formula's at one state.
 
-    1. Equal within floating-point error: right (``inv`` instead of ``solve`` lands here).
+    1. Equal within floating-point error (relative ``rtol``): right (``inv`` instead of
+       ``solve`` lands here). At a still case (:attr:`Case.still`) the checks pass
+       :data:`STILL_RTOL` and no ``implied_jdq``: steps 2 and 4 do not apply there.
     2. Where the law holds :math:`\dot J\dot q`: ``implied_jdq(got)`` is the :math:`\dot J\dot q`
        the student's torque implies if everything else is exact. Within :data:`JDOT_APPROX` of
        MuJoCo's ``jdq``: right (a finite-difference :math:`\dot J\dot q`, or a numerical IK, lands
@@ -211,7 +221,7 @@ def judge_torque(
        never below leaving the term out (which scores 0.5).
     5. Otherwise: zero, with both values printed to as many digits as tell them apart.
     """
-    if close(got, expected):
+    if close(got, expected, rtol):
         return Verdict(1.0, "")
     eps = None
     if implied_jdq is not None and jdq is not None and np.linalg.norm(jdq) > 0:
@@ -256,6 +266,8 @@ class Case:
 
     Attributes:
         states: :data:`LEAD_IN` + 1 consecutive states, one control step apart (the last is tested).
+        still: the arm (or the reference) is at rest at the tested state, so the law's
+            :math:`\\dot J\\dot q` term is exactly zero there.
         q_d, qd_d, qdd_d: joint reference at each of those instants, shape (n, 3).
         x_d, xd_d, xdd_d: its Cartesian image ``FK(q_d)``, :math:`J\\dot q_d`,
             :math:`J\\ddot q_d + \\dot J\\dot q_d`, shape (n, 3).
@@ -271,6 +283,7 @@ class Case:
     xdd_d: np.ndarray
     Kp: float
     Kd: float
+    still: bool = False
 
 
 def cartesian_reference(model: mujoco.MjModel, q_d, qd_d, qdd_d):
@@ -280,42 +293,50 @@ def cartesian_reference(model: mujoco.MjModel, q_d, qd_d, qdd_d):
     return T.x, T.J @ qd_d, T.J @ qdd_d + T.jdq
 
 
-def tracking_cases(seed: int, check: str, n: int = 4, gains=((30.0, 90.0), (8.0, 20.0))) -> list[Case]:
-    """``n`` seeded tests of a tracking law near an elbow-up joint reference.
+def tracking_cases(
+    seed: int, check: str, n: int = 4, gains=((30.0, 90.0), (8.0, 20.0)), still: str | None = None
+) -> list[Case]:
+    r"""``n`` seeded tests of a tracking law near an elbow-up joint reference.
 
     Each reference is a smooth joint motion :math:`q_d(t)` (quadratic in time) around a drawn
     configuration; the arm's state is the reference plus a small offset that also moves
     smoothly, so consecutive states are what a simulation would hand the controller.
+
+    With ``still`` (``"arm"`` or ``"reference"``) one more case comes first, drawn from a stream
+    of its own (the other ``n`` stay as they are): the arm, or the reference, is at rest at the
+    tested state, so a law's :math:`\dot J\dot q` term vanishes there, whether computed by
+    MuJoCo or by finite differences. The arm at rest for a :math:`\dot J(q,\dot q)\dot q`
+    taken at the arm's state (operational-space CT); the reference at rest for one taken at the
+    reference (IK + joint CT), the arm still moving so that the whole of :math:`h(q,\dot q)` counts.
     """
     model = arm_model()
-    dt = model.opt.timestep
+    cases = [] if still is None else [_tracking_case(model, rng_for(seed, f"{check}:still"), gains, still)]
     rng = rng_for(seed, check)
-    cases = []
-    for _ in range(n):
-        q_star = draw_configuration(rng, elbow_up=True)
-        v, a = rng.uniform(-1.5, 1.5, 3), rng.uniform(-3.0, 3.0, 3)
-        dq, dv = rng.uniform(-0.05, 0.05, 3), rng.uniform(-0.3, 0.3, 3)
-        t_star = float(rng.uniform(0.5, 5.0))
-        s = dt * np.arange(-LEAD_IN, 1)
-        q_d = q_star + np.outer(s, v) + 0.5 * np.outer(s**2, a)
-        qd_d = v + np.outer(s, a)
-        qdd_d = np.tile(a, (len(s), 1))
-        refs = np.array([np.concatenate(cartesian_reference(model, *k)) for k in zip(q_d, qd_d, qdd_d, strict=True)])
+    return cases + [_tracking_case(model, rng, gains) for _ in range(n)]
+
+
+def _tracking_case(model: mujoco.MjModel, rng: np.random.Generator, gains, still: str | None = None) -> Case:
+    """One case of :func:`tracking_cases`, drawn from ``rng``."""
+    if still not in (None, "arm", "reference"):
+        raise ValueError(f"still must be None, 'arm' or 'reference', got {still!r}")
+    dt = model.opt.timestep
+    q_star = draw_configuration(rng, elbow_up=True)
+    v, a = rng.uniform(-1.5, 1.5, 3), rng.uniform(-3.0, 3.0, 3)
+    dq, dv = rng.uniform(-0.05, 0.05, 3), rng.uniform(-0.3, 0.3, 3)
+    t_star = float(rng.uniform(0.5, 5.0))
+    if still == "reference":  # turning round at the tested instant: q̇_d = 0 there, q̈_d = a
+        v = np.zeros(3)
+    s = dt * np.arange(-LEAD_IN, 1)
+    q_d = q_star + np.outer(s, v) + 0.5 * np.outer(s**2, a)
+    qd_d = v + np.outer(s, a)
+    qdd_d = np.tile(a, (len(s), 1))
+    refs = np.array([np.concatenate(cartesian_reference(model, *k)) for k in zip(q_d, qd_d, qdd_d, strict=True)])
+    if still == "arm":  # held still, off the reference
+        states = tuple(State(q_d[-1] + dq, np.zeros(3), t_star + float(s[k])) for k in range(len(s)))
+    else:
         states = tuple(State(q_d[k] + dq + s[k] * dv, qd_d[k] + dv, t_star + float(s[k])) for k in range(len(s)))
-        cases.append(
-            Case(
-                states,
-                q_d,
-                qd_d,
-                qdd_d,
-                refs[:, :3],
-                refs[:, 3:6],
-                refs[:, 6:],
-                float(rng.uniform(*gains[0])),
-                float(rng.uniform(*gains[1])),
-            )
-        )
-    return cases
+    Kp, Kd = float(rng.uniform(*gains[0])), float(rng.uniform(*gains[1]))
+    return Case(states, q_d, qd_d, qdd_d, refs[:, :3], refs[:, 3:6], refs[:, 6:], Kp, Kd, still is not None)
 
 
 def call_along(probe: Probe, fname: str, case: Case, args_at: Callable[[int], tuple]) -> np.ndarray:

@@ -26,6 +26,8 @@ import numpy as np
 
 from labsupport.grading.common import (
     MARGINS,
+    STILL_RTOL,
+    Case,
     Mistake,
     arm_model,
     call_along,
@@ -66,6 +68,10 @@ START_TOL = 1e-4  # [m]
 #: The tracking check follows one turn of a seeded circle.
 TRACK_DURATION = 1 / FREQUENCY
 
+GRAVITY_ONLY = (
+    "the bias term holds gravity alone; h(q, q̇) = data.qfrc_bias also holds the Coriolis and "
+    "centrifugal forces, which grow with the speed (gravity alone is h only at rest)"
+)
 JDOT_HINT = (
     'MuJoCo gives it: site_jdot_qdot(model, data, "end_effector")[:3]; a finite-difference '
     "approximation within 5 % gets full marks"
@@ -118,8 +124,9 @@ def _os_expected(T, state, x_d, xd_d, xdd_d, Kp, Kd):
     return expected, implied_jdq, fb
 
 
-def _os_mistakes(T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
+def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
     M, h, J, jdq = T.M, T.h, T.J, T.jdq
+    gravity = terms(model, state.q, np.zeros(3)).h
     e, edot = x_d - T.x, xd_d - J @ state.qdot
 
     def law(a):
@@ -135,6 +142,7 @@ def _os_mistakes(T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
         ),
         "jdot_sign": Mistake(law(xdd_d + fb + jdq), "J̇q̇ must be subtracted: ẍ = J q̈ + J̇q̇, so J q̈ = ẍ − J̇q̇.", 0.25),
         "no_bias": Mistake(law(xdd_d + fb - jdq) - h, "the bias term h(q, q̇) = data.qfrc_bias is missing.", 0.25),
+        "gravity_only": Mistake(law(xdd_d + fb - jdq) - h + gravity, GRAVITY_ONLY, 0.5),
         "no_mass": Mistake(
             np.linalg.solve(J, xdd_d + fb - jdq) + h, "the mass matrix is missing: τ = M(q) J⁻¹(...) + h.", 0.25
         ),
@@ -158,7 +166,7 @@ def check_os_ct(probe: Probe, seed: int) -> Result:
     name, label, fname = "p2_osct", "OS-CT", "ct_op_torque"
     model = arm_model()
     worst = 0.0
-    for case in tracking_cases(seed, name):
+    for case in tracking_cases(seed, name, still="arm"):
         try:
             tau = call_along(probe, fname, case, lambda k, c=case: (c.x_d[k], c.xd_d[k], c.xdd_d[k], c.Kp, c.Kd))
         except StudentError as err:
@@ -167,12 +175,25 @@ def check_os_ct(probe: Probe, seed: int) -> Result:
         T = terms(model, state.q, state.qdot, state.t)
         ref = (case.x_d[-1], case.xd_d[-1], case.xdd_d[-1], case.Kp, case.Kd)
         expected, implied, fb = _os_expected(T, state, *ref)
-        verdict = judge_torque(tau, expected, _os_mistakes(T, state, *ref, fb), implied, T.jdq)
+        mistakes = _os_mistakes(model, T, state, *ref, fb)
+        if case.still:
+            verdict = judge_torque(tau, expected, mistakes, rtol=STILL_RTOL)
+        else:
+            verdict = judge_torque(tau, expected, mistakes, implied, T.jdq)
         if verdict.score < 1:
-            return failed(name, f"{label}: {verdict.text}", verdict.score)
+            return failed(name, f"{label}: {_where(case, 'the arm', verdict.text)}", verdict.score)
         worst = max(worst, verdict.jdot_error or 0.0)
     note = f" Your J̇q̇ is an approximation (within {100 * worst:.2g} % of MuJoCo's): accepted." if worst > 1e-6 else ""
     return passed(name, "OS-CT: ct_op_torque gives M J⁻¹(ẍ_d + Kd ė + Kp e − J̇q̇) + h at every test state." + note)
+
+
+def _where(case: Case, still: str, text: str) -> str:
+    """``text``, said to be at a state where the law's J̇q̇ term is zero if ``case`` is one (so
+    the student looks elsewhere than J̇q̇); ``still`` names what is at rest there and the term."""
+    if not case.still:
+        return text
+    term = "J̇(q, q̇) q̇" if still == "the arm" else "J̇(q_d, q̇_d) q̇_d"
+    return f"with {still} momentarily at rest, where the law's {term} is exactly zero: {text}"
 
 
 def _joint_reference_terms(model, q_d, xd_d, xdd_d):
@@ -215,7 +236,13 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
             f"everything is right except the J̇(q_d, q̇_d) q̇_d term in q̈_d, which is missing. {JDOT_HINT} (at q_d, q̇_d).",
             0.5,
         ),
+        "jdot_sign": Mistake(
+            law(np.linalg.solve(Td.J, xdd_d + Td.jdq)),
+            "J̇(q_d, q̇_d) q̇_d must be subtracted: ẍ_d = J q̈_d + J̇q̇_d, so q̈_d = J(q_d)⁻¹(ẍ_d − J̇q̇_d).",
+            0.25,
+        ),
         "no_bias": Mistake(M @ (qdd_d + fb), "the bias term h(q, q̇) = data.qfrc_bias is missing.", 0.25),
+        "gravity_only": Mistake(M @ (qdd_d + fb) + terms(model, q, np.zeros(3)).h, GRAVITY_ONLY, 0.5),
         "no_mass": Mistake(qdd_d + fb + h, "the mass matrix is missing: τ = M(q)(...) + h.", 0.25),
         "no_ff": Mistake(M @ fb + h, "the feed-forward acceleration q̈_d is missing.", 0.25),
         "sign": Mistake(M @ (qdd_d - fb) + h, "the feedback has the wrong sign: e = q_d − q.", 0.0),
@@ -245,7 +272,7 @@ def check_ik_ct(probe: Probe, seed: int) -> Result:
     name, label, fname = "p2_ikct", "IK+JS-CT", "ct_ik_joint_torque"
     model = arm_model()
     worst = 0.0
-    for case in tracking_cases(seed, name):
+    for case in tracking_cases(seed, name, still="reference"):
         try:
             tau = call_along(probe, fname, case, lambda k, c=case: (c.x_d[k], c.xd_d[k], c.xdd_d[k], c.Kp, c.Kd))
         except StudentError as err:
@@ -263,7 +290,10 @@ def check_ik_ct(probe: Probe, seed: int) -> Result:
             return xdd_d - Td.J @ qdd
 
         mistakes = _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd)
-        verdict = judge_torque(tau, expected, mistakes, implied_jdq, Td.jdq)
+        if case.still:
+            verdict = judge_torque(tau, expected, mistakes, rtol=STILL_RTOL)
+        else:
+            verdict = judge_torque(tau, expected, mistakes, implied_jdq, Td.jdq)
         if verdict.score < 1:
             text = verdict.text
             if verdict.score == 0 and text.startswith("got"):
@@ -271,7 +301,7 @@ def check_ik_ct(probe: Probe, seed: int) -> Result:
                     "the torque differs from IK + joint CT: check q_d = IK(x_d) (elbow up), q̇_d = J(q_d)⁻¹ ẋ_d "
                     "and q̈_d = J(q_d)⁻¹(ẍ_d − J̇(q_d, q̇_d) q̇_d); " + text
                 )
-            return failed(name, f"{label}: {text}", verdict.score)
+            return failed(name, f"{label}: {_where(case, 'the reference', text)}", verdict.score)
         worst = max(worst, verdict.jdot_error or 0.0)
     note = (
         f" Your reference is an approximation (its J̇q̇ within {100 * worst:.2g} % of MuJoCo's): accepted."
