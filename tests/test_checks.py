@@ -306,7 +306,16 @@ def test_ik_that_accepts_unreachable_targets_is_told(master1):
         return master1["ik_3r"](np.asarray(x) * min(1.0, 1.9 / np.linalg.norm(np.asarray(x) - [0, 0, 1])), elbow_up)
 
     result = grade("p1_ik", ik_3r=no_check)
-    assert result.score == 1 and "instead of raising a ValueError" in result.message
+    assert result.score == 1 and "returned angles instead of raising a ValueError" in result.message
+    for out_of_reach, said in ((None, "None"), (np.full(3, np.nan), "NaN")):
+
+        def quiet(x, elbow_up=True, out_of_reach=out_of_reach):
+            if np.linalg.norm(np.asarray(x) - [0, 0, 1]) > 2:
+                return out_of_reach
+            return master1["ik_3r"](x, elbow_up)
+
+        result = grade("p1_ik", ik_3r=quiet)
+        assert result.score == 1 and f"returned {said} instead of raising a ValueError" in result.message, result
 
 
 @pytest.mark.parametrize(
@@ -379,6 +388,87 @@ def test_ik_ct_mistakes_are_named(master2):
         result = grade("p2_ikct", ct_ik_joint_torque=fn)
         assert result.score == score and words in result.message, result
     assert model.nv == 3
+
+
+def gravity_at(model, q):
+    """h(q, 0): the bias forces at rest, gravity alone."""
+    d = mujoco.MjData(model)
+    d.qpos[:] = q
+    mujoco.mj_forward(model, d)
+    return d.qfrc_bias.copy()
+
+
+def os_variant(kp=1.0, kd=1.0, ff=1.0, mass=lambda M: M, bias=lambda model, data: bias_forces(data)):
+    """OS-CT with one term changed: a gain or the feed-forward scaled, M or h replaced."""
+
+    def ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        J, jdq = site_jacobian(model, data, SITE)[:3], site_jdot_qdot(model, data, SITE)[:3]
+        a = ff * xdd_d + kd * Kd * (xd_d - J @ data.qvel) + kp * Kp * (x_d - data.site(SITE).xpos) - jdq
+        return mass(mass_matrix(model, data)) @ np.linalg.solve(J, a) + bias(model, data)
+
+    return ct_op_torque
+
+
+def ik_variant(ik, kp=1.0, kd=1.0, ff=1.0, mass=lambda M: M, bias=lambda model, data: bias_forces(data)):
+    """IK + joint CT with one term changed, as :func:`os_variant`."""
+
+    def ct_ik_joint_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        q_d = ik(x_d, elbow_up=True)
+        J_d, _ = jacobian_at(model, q_d)
+        qd_d = np.linalg.solve(J_d, xd_d)
+        qdd_d = np.linalg.solve(J_d, ff * xdd_d - jacobian_at(model, q_d, qd_d)[1])
+        fb = kd * Kd * (qd_d - data.qvel) + kp * Kp * (q_d - data.qpos)
+        return mass(mass_matrix(model, data)) @ (qdd_d + fb) + bias(model, data)
+
+    return ct_ik_joint_torque
+
+
+@pytest.mark.parametrize(
+    "wrong",
+    [
+        {"kp": 0.97},
+        {"kd": 0.97},
+        {"ff": 0.97},
+        {"mass": lambda M: np.diag(np.diag(M))},
+        {"bias": lambda model, data: 0.97 * bias_forces(data)},
+    ],
+    ids=["Kp", "Kd", "feed-forward", "diagonal_M", "h"],
+)
+def test_an_error_outside_jdot_is_not_taken_for_an_approximate_jdot(master2, wrong):
+    """J is square, so any wrong torque implies some J̇q̇: a slightly wrong gain once read as
+    'everything right but J̇q̇, off by 6 %' and kept 97 % of the marks. The first test state has
+    the arm (OS-CT) or the reference (IK + joint CT) at rest, where J̇q̇ is zero: every other
+    term must match there."""
+    for name, fname, law in (
+        ("p2_osct", "ct_op_torque", os_variant(**wrong)),
+        ("p2_ikct", "ct_ik_joint_torque", ik_variant(master2["ik_3r"], **wrong)),
+    ):
+        for seed in (PUBLIC_SEED, OTHER_SEED):
+            result = grade(name, seed, **{fname: law})
+            assert result.score == 0 and "momentarily at rest" in result.message, result
+            assert "J̇q̇ ≈" not in result.message
+
+
+def test_gravity_alone_for_the_bias_is_named(master2):
+    def gravity(model, data):
+        return gravity_at(model, data.qpos)
+
+    for name, fname, law in (
+        ("p2_osct", "ct_op_torque", os_variant(bias=gravity)),
+        ("p2_ikct", "ct_ik_joint_torque", ik_variant(master2["ik_3r"], bias=gravity)),
+    ):
+        result = grade(name, **{fname: law})
+        assert result.score == 0.5 and "gravity alone" in result.message and "Coriolis" in result.message, result
+
+
+def test_ik_ct_jdot_sign_is_named(master2):
+    def jdot_added(model, data, *ref):
+        return ik_ct_law(
+            model, data, *ref, ik=master2["ik_3r"], jdq_of=lambda J_d, q_d, qd_d: -jacobian_at(model, q_d, qd_d)[1]
+        )
+
+    result = grade("p2_ikct", ct_ik_joint_torque=jdot_added)
+    assert result.score == 0.25 and "must be subtracted" in result.message, result
 
 
 def test_wrong_numbers_are_printed_so_they_differ():

@@ -149,8 +149,12 @@ def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.nda
         StudentError: for anything else unusable (wrong shape, NaN, not numbers).
     """
     if value is None:
-        verb = "is" if what == "value" else "returned"
-        raise NotImplementedYet(f"{fname} {verb} None: not implemented yet")
+        if what == "value":
+            raise NotImplementedYet(f"{fname} is None: not implemented yet")
+        raise NotImplementedYet(
+            f"{fname} returned None: not implemented yet (or its last line lacks `return`: a function "
+            "that ends without one returns None)"
+        )
     if validate.is_complex(value):
         raise StudentError(complex_message(fname))
     try:

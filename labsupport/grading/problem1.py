@@ -137,13 +137,17 @@ def _unreachable_note(probe: Probe) -> str:
     """A remark (no points) if ``ik_3r`` returns angles for a target out of reach instead of raising."""
     x = np.array([2.4, 0.0, 1.5])  # 2.45 m from the shoulder; the arm reaches 2 m
     try:
-        probe.call("ik_3r", x, elbow_up=True)
+        value = probe.call("ik_3r", x, elbow_up=True)
     except StudentError as err:
         if "ValueError" in str(err):
             return ""
         return f" (For a target out of reach, {x}, it should raise ValueError; it {err}.)".replace("ik_3r ", "")
+    try:
+        returned = "None" if value is None else "NaN" if np.isnan(np.asarray(value, dtype=float)).any() else "angles"
+    except (TypeError, ValueError):  # not numbers: the IK check itself says so
+        returned = repr(value)[:40]
     return (
-        f" (Note: for a target out of reach, {x} is 2.45 m from the shoulder, ik_3r returned angles instead "
+        f" (Note: for a target out of reach, {x} is 2.45 m from the shoulder, ik_3r returned {returned} instead "
         "of raising a ValueError that says so.)"
     )
 
