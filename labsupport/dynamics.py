@@ -79,14 +79,15 @@ def mass_matrix(model: mujoco.MjModel, data: mujoco.MjData, out: np.ndarray | No
     >>> print(mass_matrix(model, data))
     [[0.5]]
     """
-    if out is None:
-        out = np.zeros((model.nv, model.nv))
     try:
+        if out is None:
+            out = np.zeros((model.nv, model.nv))
         if FULLM_TAKES_DATA:
             mujoco.mj_fullM(model, data, out)
         else:  # MuJoCo 3.x
             mujoco.mj_fullM(model, out, data.qM)
-    except TypeError:
+    except (TypeError, AttributeError):
+        validate.model_and_data(model, data)  # names a model or data of the wrong kind
         raise _bad_out("mass_matrix", out, (model.nv, model.nv)) from None
     return out
 
@@ -114,6 +115,8 @@ def bias_forces(data: mujoco.MjData) -> np.ndarray:
     >>> print(bias_forces(data))
     [0.981]
     """
+    if not isinstance(data, mujoco.MjData):
+        raise ValueError(f"bias_forces takes the data (a mujoco.MjData), got {type(data).__name__}")
     return data.qfrc_bias.copy()
 
 
@@ -240,6 +243,11 @@ def task_space_inertia(model: mujoco.MjModel, data: mujoco.MjData, jac: np.ndarr
     lam_inv = jac @ minv_jt
     if damping:
         lam_inv = lam_inv + damping * np.eye(lam_inv.shape[0])
+    if not damping and np.linalg.matrix_rank(jac) < jac.shape[0]:
+        raise ValueError(
+            "task_space_inertia: J has lost rank, so J M⁻¹ Jᵀ is singular and Λ does not exist here (the arm "
+            "is stretched out or folded, or J has more rows than joints); pass damping > 0 for a bounded Λ"
+        )
     return np.linalg.solve(lam_inv, np.eye(lam_inv.shape[0]))
 
 

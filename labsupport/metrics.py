@@ -8,9 +8,13 @@ import mujoco
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
 
+from labsupport import validate
+
 
 def _samples(error) -> np.ndarray:
     """``error`` as a float array with at least one sample, or a ``ValueError``."""
+    if error is None:
+        raise ValueError("no error to take the RMS of (got None)")
     error = np.asarray(error, dtype=float)
     if error.size == 0:
         raise ValueError(
@@ -43,9 +47,14 @@ def cumulative_effort(t, tau):
 
     ``tau`` is ``(N,)`` or ``(N, nu)``; the squared norm sums the joints.
     """
-    tau = np.asarray(tau, dtype=float)
+    t, tau = validate.times(t), np.asarray(tau, dtype=float)
+    if t.ndim != 1 or tau.ndim not in (1, 2) or len(tau) != len(t):
+        raise ValueError(
+            f"cumulative_effort needs one torque per time: t of shape (N,) and tau of shape (N,) or (N, nu), "
+            f"got t of shape {t.shape} and tau of shape {tau.shape}"
+        )
     sq = tau**2 if tau.ndim == 1 else np.sum(tau**2, axis=1)
-    return cumulative_trapezoid(sq, np.asarray(t, dtype=float), initial=0.0)
+    return cumulative_trapezoid(sq, t, initial=0.0)
 
 
 def _step_response(y, t=None) -> tuple[np.ndarray, np.ndarray | None]:
@@ -62,13 +71,17 @@ def _step_response(y, t=None) -> tuple[np.ndarray, np.ndarray | None]:
         raise ValueError("the step response has no samples (y is empty)")
     if t is not None and t.shape != y.shape:
         raise ValueError(f"t and y must have one time per sample, got t of shape {t.shape} and y of shape {y.shape}")
+    if not np.isfinite(y).all():
+        raise ValueError(
+            "the step response holds NaN or inf (did the run diverge?); its overshoot and settling time are undefined"
+        )
     return y, t
 
 
 def overshoot(y, final: float, initial: float) -> float:
     r"""Percent overshoot of a step response, :math:`100\,\max_t (y - y_f)/(y_f - y_0)`, 0 if none."""
     y, _ = _step_response(y)
-    span = final - initial
+    span = validate.number("final", final) - validate.number("initial", initial)
     if span == 0:
         raise ValueError("final and initial are equal: a step of zero size has no overshoot")
     return max(0.0, 100.0 * float(np.max((y - final) / span)))
@@ -80,6 +93,10 @@ def settling_time(t, y, final: float, initial: float, band: float = 0.02) -> flo
     Returns ``nan`` if the response is still outside the band at the end of the record.
     """
     y, t = _step_response(y, t)
+    final, initial = validate.number("final", final), validate.number("initial", initial)
+    band = validate.number("band", band, positive=True)
+    if final == initial:
+        raise ValueError("final and initial are equal: a step of zero size has no settling time")
     outside = np.abs(y - final) > band * abs(final - initial)
     if not outside.any():
         return float(t[0])

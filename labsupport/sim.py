@@ -134,6 +134,7 @@ def reset(
 ) -> None:
     """Reset ``data`` (to ``keyframe`` if named), set the initial state (validated) and, unless
     ``forward=False``, run ``mj_forward``."""
+    validate.model_and_data(model, data)
     if keyframe is None:
         mujoco.mj_resetData(model, data)
     else:
@@ -215,6 +216,11 @@ def simulate(
     >>> print(log.q.shape, f"{np.degrees(log.q[-1, 0]):.3f} deg")
     (3000, 1) 30.000 deg
     """
+    validate.model_and_data(model, data)
+    if not callable(controller):
+        raise ValueError(
+            f"controller must be a function controller(model, data) -> tau, got {validate.short(controller)}"
+        )
     dt = model.opt.timestep
     duration = validate.number("duration", duration, positive=True)
     nsteps = step_count(duration, dt, lab_timing)
@@ -266,7 +272,7 @@ def simulate(
                 step1(model, data)
             try:
                 tau = controller(model, data)
-            except ValueError as err:
+            except (ValueError, TypeError) as err:
                 raise _controller_failed(err, model, data) from err
             if type(tau) is not np.ndarray or tau.shape != (nu,) or tau.dtype != np.float64:
                 tau = _as_torque(tau, nu)
@@ -311,16 +317,18 @@ def simulate(
     return Log(t, q, qdot, tau_log, ctrl_log, ee, ee_rot, ref, err, site_id)
 
 
-def _controller_failed(err: ValueError, model: mujoco.MjModel, data: mujoco.MjData) -> ValueError:
-    """The controller's ``ValueError`` with the time it happened at; for a shape mismatch (a
-    NumPy broadcast error from inside a law) also the sizes the model's state has."""
-    message = f"the controller raised at t = {data.time:.4f} s: {str(err).rstrip()}"
+def _controller_failed(err: Exception, model: mujoco.MjModel, data: mujoco.MjData) -> Exception:
+    """The controller's ``ValueError`` or ``TypeError`` (say, ``None - 1.0`` from a reference not
+    set) again, with the time it happened at; for a shape mismatch (a NumPy broadcast error from
+    inside a law) also the sizes the model's state has."""
+    kind = TypeError if isinstance(err, TypeError) else ValueError
+    message = f"the controller raised {type(err).__name__} at t = {data.time:.4f} s: {str(err).rstrip()}"
     if "shape" in message:
         message += (
             f". The model's state has nq = {model.nq}, nv = {model.nv} and nu = {model.nu}: check that "
             "the references and gains given to the law have these sizes"
         )
-    return ValueError(message)
+    return kind(message)
 
 
 def _as_torque(tau, nu: int) -> np.ndarray:
@@ -328,7 +336,12 @@ def _as_torque(tau, nu: int) -> np.ndarray:
     if tau is None:
         raise ValueError(f"the controller returned None; it must return a torque of shape ({nu},)")
     validate.real("the controller returned", tau)
-    tau = np.asarray(tau, dtype=float)
+    try:
+        tau = np.asarray(tau, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"the controller returned {validate.short(tau)}, not numbers; it must return a torque of shape ({nu},)"
+        ) from None
     if tau.size != nu:
         raise ValueError(f"the controller returned a torque of shape {tau.shape}, expected ({nu},)")
     return tau.reshape(nu)

@@ -50,7 +50,8 @@ def versine(t, c: float, amplitude: float = np.pi / 4) -> Reference:
     >>> print(np.degrees(ref.pos), np.round(ref.vel, 12))
     [-45.  45.] [0. 0.]
     """
-    t = np.asarray(t, dtype=float)
+    t = validate.times(t)
+    c, amplitude = validate.number("c", c), validate.number("amplitude", amplitude)
     return Reference(c - amplitude * np.cos(t), amplitude * np.sin(t), amplitude * np.cos(t))
 
 
@@ -59,7 +60,8 @@ def sinusoid(t, amplitude: float = np.pi / 4, omega: float = 1.0) -> Reference:
 
     .. math:: \dot\theta_d = A\omega\cos\omega t,\qquad \ddot\theta_d = -A\omega^2\sin\omega t
     """
-    t = np.asarray(t, dtype=float)
+    t = validate.times(t)
+    amplitude, omega = validate.number("amplitude", amplitude), validate.number("omega", omega)
     s, c = np.sin(omega * t), np.cos(omega * t)
     return Reference(amplitude * s, amplitude * omega * c, -amplitude * omega**2 * s)
 
@@ -93,7 +95,7 @@ def circle_2d(t, center, radius: float, period: float) -> Reference:
     >>> print(ref.pos, f"{np.linalg.norm(ref.vel):.4f} m/s")
     [0.65 0.2 ] 0.1571 m/s
     """
-    t = np.asarray(t, dtype=float)
+    t = validate.times(t)
     center = validate.vector("center", center, (2,))
     radius = validate.number("radius", radius, positive=True)
     w = 2 * np.pi / validate.number("period", period, positive=True)
@@ -110,7 +112,7 @@ def circle_3d(t, center, radius: float, normal, frequency: float) -> Reference:
     with :math:`u, v` from :func:`circle_basis`. Velocity and acceleration are the exact
     derivatives. Arrays of ``t`` give arrays of shape ``(len(t), 3)``.
     """
-    t = np.asarray(t, dtype=float)
+    t = validate.times(t)
     center = validate.vector("center", center, (3,))
     radius = validate.number("radius", radius, positive=True)
     u, v = circle_basis(normal)

@@ -31,6 +31,7 @@ def vector(name: str, value, shape) -> np.ndarray:
         ValueError: the value is not numeric, has another shape, or holds NaN or inf.
     """
     shape = (int(shape),) if np.ndim(shape) == 0 else tuple(int(n) for n in shape)
+    _not_text(name, value)
     try:
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
@@ -50,6 +51,7 @@ def number(name: str, value, *, positive: bool = False, nonnegative: bool = Fals
     """
     if isinstance(value, (bool, np.bool_)):
         raise ValueError(f"{name} must be a number, got the boolean {value!r}")
+    _not_text(name, value)
     try:
         result = float(np.asarray(value, dtype=float).reshape(()))
     except (TypeError, ValueError):
@@ -61,6 +63,41 @@ def number(name: str, value, *, positive: bool = False, nonnegative: bool = Fals
     if nonnegative and not result >= 0:
         raise ValueError(f"{name} must be non-negative, got {value!r}")
     return result
+
+
+def times(t) -> np.ndarray:
+    """``t`` as a float array of finite times [s]: one number, or an array of them."""
+    if t is None:
+        raise ValueError("t must be a time in seconds (a number or an array of them), got None")
+    _not_text("t", t)
+    try:
+        t = np.asarray(t, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"t must be a time in seconds (a number or an array of them), got {short(t)}") from None
+    if not np.isfinite(t).all():
+        raise ValueError(f"t must be finite, got {short(t)}")
+    return t
+
+
+def _not_text(name: str, value) -> None:
+    """``ValueError`` for text where numbers belong (NumPy would read "5" as 5.0)."""
+    if isinstance(value, (str, bytes)) or (isinstance(value, (list, tuple)) and any(isinstance(v, str) for v in value)):
+        raise ValueError(f"{name} must be numbers, not text: got {short(value)}")
+
+
+def model_and_data(model, data) -> None:
+    """``ValueError`` unless ``model`` is a ``mujoco.MjModel`` and ``data`` a ``mujoco.MjData``
+    made for it (sizes checked: a data of another model would be read past its arrays or
+    broadcast into the wrong shapes)."""
+    if not isinstance(model, mujoco.MjModel):
+        swapped = ": model and data are swapped" if isinstance(model, mujoco.MjData) else ""
+        raise ValueError(f"model must be a mujoco.MjModel, got {type(model).__name__}{swapped}")
+    if not isinstance(data, mujoco.MjData):
+        raise ValueError(f"data must be a mujoco.MjData (made with mujoco.MjData(model)), got {type(data).__name__}")
+    sizes = {"nq": data.qpos.size, "nv": data.qvel.size, "nu": data.ctrl.size, "nbody": len(data.xpos)}
+    wrong = [f"{k} = {v} (the model's {getattr(model, k)})" for k, v in sizes.items() if v != getattr(model, k)]
+    if wrong:
+        raise ValueError(f"data was made for another model: its {', '.join(wrong)}; make it with mujoco.MjData(model)")
 
 
 def complex_message(returned: str) -> str:

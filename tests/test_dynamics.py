@@ -155,6 +155,25 @@ def test_task_space_inertia_equals_M_Jinv_for_a_square_jacobian(arm):
         np.testing.assert_allclose(J.T @ lam, M @ np.linalg.inv(J), rtol=1e-8, atol=1e-10)
 
 
+def test_task_space_inertia_names_a_singular_jacobian(arm):
+    model, data = arm
+    mujoco.mj_forward(model, data)
+    J = dynamics.site_jacobian(model, data, "tip")  # all six rows, for three joints: rank 3
+    with pytest.raises(ValueError, match="J has lost rank.*Λ does not exist here.*damping > 0"):
+        dynamics.task_space_inertia(model, data, J)
+    assert np.all(np.isfinite(dynamics.task_space_inertia(model, data, J, damping=1e-3)))
+
+
+def test_model_and_data_of_the_wrong_kind_are_named(arm):
+    model, data = arm
+    with pytest.raises(ValueError, match="model and data are swapped"):
+        dynamics.mass_matrix(data, model)
+    with pytest.raises(ValueError, match="data must be a mujoco.MjData"):
+        dynamics.mass_matrix(model, data.qpos)
+    with pytest.raises(ValueError, match="bias_forces takes the data"):
+        dynamics.bias_forces(model)
+
+
 def test_unknown_site_is_named(arm):
     model, data = arm
     with pytest.raises(ValueError, match="'hand'.*tip"):

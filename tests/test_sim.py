@@ -67,7 +67,10 @@ def test_torque_limit_clips(arm):
         ([1.0, 2.0, 3.0], "one per actuator: nu = 2) must have shape (2,), got shape (3,)"),
         (np.ones((2, 2)), "must have shape (2,), got shape (2, 2)"),
         ([1.0, np.nan], "must be finite"),
-        ("abc", "torque_limit must be a single real number"),
+        ("abc", "torque_limit must be numbers, not text: got 'abc'"),
+        ("10", "torque_limit must be numbers, not text"),  # NumPy would read it as 10.0
+        ([1.0, "2"], "torque_limit (a number, or one per actuator: nu = 2) must be numbers, not text"),
+        ({"a": 1}, "torque_limit must be a single real number"),
         ([3.0, -4.0], "torque_limit must be positive"),
     ],
 )
@@ -511,8 +514,10 @@ def test_validate_names_the_argument_and_what_was_wrong():
         validate.vector("q", [1, 2, 3], (2,))
     with pytest.raises(ValueError, match="q must be finite"):
         validate.vector("q", [1, np.nan], 2)
-    with pytest.raises(ValueError, match="q must be numbers of shape"):
+    with pytest.raises(ValueError, match="q must be numbers, not text"):
         validate.vector("q", ["a", "b"], 2)
+    with pytest.raises(ValueError, match="q must be numbers of shape"):
+        validate.vector("q", [{}, 1], 2)
     assert validate.number("Kp", np.float32(2.5), positive=True) == 2.5
     with pytest.raises(ValueError, match="Kp must be positive, got 0"):
         validate.number("Kp", 0, positive=True)
@@ -522,3 +527,36 @@ def test_validate_names_the_argument_and_what_was_wrong():
         validate.number("dt", [0.1, 0.2])
     with pytest.raises(ValueError, match="boolean"):
         validate.number("dt", True)
+
+
+def test_the_wrong_model_data_or_controller_is_named(arm):
+    """What a student passes by mistake is named before the run, not found by MuJoCo or NumPy."""
+    model, data = arm
+    other_model, other_data = load_model("spatial_3r")
+    pd = constant([0.0, 0.0])
+    for args, words in (
+        ((None, data, pd), "model must be a mujoco.MjModel, got NoneType"),
+        ((data, model, pd), "model and data are swapped"),
+        ((model, None, pd), "data must be a mujoco.MjData"),
+        ((model, other_data, pd), "data was made for another model: its nq = 3 (the model's 2)"),
+        ((model, data, None), "controller must be a function controller(model, data) -> tau, got None"),
+        ((model, data, np.zeros(2)), "controller must be a function"),
+    ):
+        with pytest.raises(ValueError) as err:
+            sim.simulate(*args, 0.1)
+        assert words in str(err.value)
+    assert other_model.nq == 3
+
+
+def test_a_controller_failing_or_returning_text_is_named_with_the_time(arm):
+    model, data = arm
+    target = None  # a reference the student forgot to set
+
+    def pd(model, data):
+        return 10.0 * (target - data.qpos)
+
+    with pytest.raises(TypeError, match=r"the controller raised TypeError at t = 0\.0000 s: unsupported operand"):
+        sim.simulate(model, data, pd, 0.1)
+    for returned in ("abc", {"tau": 1.0}):
+        with pytest.raises(ValueError, match="the controller returned .*not numbers; it must return a torque of shape"):
+            sim.simulate(model, data, lambda m, d, r=returned: r, 0.1)

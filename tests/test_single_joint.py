@@ -232,6 +232,26 @@ def test_bad_torque_is_named_without_scipy_traceback(bad):
     _assert_no_scipy_frames(excinfo)
 
 
+def test_step_metrics_refuse_what_would_give_a_wrong_number():
+    """A NaN in the response (a run that diverged) once read as 0 % overshoot."""
+    t = np.linspace(0.0, 10.0, 1001)
+    y = metrics.second_order_step(t, 2.0, 0.5)
+    assert metrics.overshoot(y, 1.0, 0.0) == pytest.approx(16.303, abs=1e-3)
+    with pytest.raises(ValueError, match="NaN or inf.*did the run diverge"):
+        metrics.overshoot(np.append(y, np.nan), 1.0, 0.0)
+    with pytest.raises(ValueError, match="NaN or inf"):
+        metrics.settling_time(np.append(t, 10.01), np.append(y, np.inf), 1.0, 0.0)
+    for band in (0.0, -0.02):
+        with pytest.raises(ValueError, match="band must be positive"):
+            metrics.settling_time(t, y, 1.0, 0.0, band=band)
+    with pytest.raises(ValueError, match="step of zero size has no settling time"):
+        metrics.settling_time(t, y, 1.0, 1.0)
+    with pytest.raises(ValueError, match="got None"):
+        metrics.rms_norm(None)
+    with pytest.raises(ValueError, match="one torque per time.*t of shape \\(1001,\\) and tau of shape \\(1000,\\)"):
+        metrics.cumulative_effort(t, y[:-1])
+
+
 def test_bad_gain_design_inputs():
     with pytest.raises(ValueError, match="percent_overshoot"):
         gains.damping_for_overshoot(0.0)

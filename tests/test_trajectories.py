@@ -44,6 +44,10 @@ def test_circle_3d_stays_on_its_circle_in_its_plane():
         (lambda: tr.circle_3d(0.0, (1.0, 0.0, 1.5), 0.0, (0, 0, 1), 0.2), "radius must be positive"),
         (lambda: tr.circle_3d(0.0, (1.0, 0.0, 1.5), 0.3, (0, 0, 0), 0.2), "normal must be a non-zero"),
         (lambda: tr.circle_3d(0.0, (1.0, 0.0, 1.5), 0.3, (0, 0, 1), np.inf), "frequency must be finite"),
+        (lambda: tr.circle_3d(None, (1.0, 0.0, 1.5), 0.3, (0, 0, 1), 0.2), "t must be a time in seconds.*got None"),
+        (lambda: tr.circle_2d(np.array([0.0, np.nan]), (0.5, 0.2), 0.15, 6.0), "t must be finite"),
+        (lambda: tr.sinusoid(0.0, omega="1"), "omega must be numbers, not text"),
+        (lambda: tr.versine("0", c=0.0), "t must be numbers, not text"),
     ],
 )
 def test_bad_circle_arguments_are_named(call, message):
