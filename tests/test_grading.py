@@ -74,7 +74,7 @@ def test_student_notebook_runs_and_reports_not_implemented(name, tmp_path):
 # --- batch grading --------------------------------------------------------------------------
 
 #: Small limits keep the hung notebooks quick; a correct notebook stays far below them.
-BUDGET = Budget(cell=8, run=40, call=3, check=30, idle=4)
+BUDGET = Budget(cell=8, run=40, call=3, check=30, idle=4, run_idle=12, check_idle=4)
 SEED = 20240917
 FULL = {"p1_ik": 3, "p1_pd": 2, "p1_ct": 3, "p1_reach": 2}
 NOTHING = ["not implemented yet"]
@@ -84,7 +84,7 @@ EXPECTED = {
     "student.ipynb": ({}, "graded", ["p1_ik: not implemented yet", "p1_reach: not implemented yet"]),
     "raises.ipynb": ({"p1_ik": 3, "p1_pd": 2}, "graded", ["raised ZeroDivisionError", "work in progress"]),
     "hangs_cell.ipynb": (FULL, "graded", ["timed out (cpu)"]),
-    "hangs_forever.ipynb": ({}, "graded", ["waited more than 4 s without computing"]),
+    "hangs_forever.ipynb": ({}, "graded", ["cells waited more than 12 s in all without computing"]),
     "hangs_in_call.ipynb": ({"p1_ik": 3, "p1_ct": 3, "p1_reach": 2}, "graded", ["p1_pd:", "did not return"]),
     "returns_nan.ipynb": ({"p1_ik": 3, "p1_pd": 2}, "graded", ["contains NaN"]),
     "deleted_cell.ipynb": ({"p1_ik": 3, "p1_ct": 3, "p1_reach": 2}, "graded", ["pd_torque is not defined"]),
@@ -101,8 +101,17 @@ EXPECTED = {
     "memoriser.ipynb": ({}, "graded", []),
     "memory_hog.ipynb": ({}, "graded", ["raised MemoryError"]),
     "fork_bomb.ipynb": ({}, "graded", NOTHING),
-    "blocks_channel.ipynb": ({}, "graded", ["waited more than 4 s without computing"]),
+    "blocks_channel.ipynb": ({}, "graded", ["cells waited more than 12 s in all without computing"]),
     "floods_channel.ipynb": ({}, "graded", ["wrote more than 64 MiB into the grader's channel"]),
+    "tampers_answers.ipynb": ({}, "graded", NOTHING),  # fields of the wrong kind are ignored
+    "corrupts_answers.ipynb": ({}, "graded", ["the notebook altered an answer in the grader's channel"]),
+    # idle time: limited per cell (not over all cells together) and, over a check, in all
+    "sleeps_between_cells.ipynb": (FULL, "graded", []),
+    "sleeps_in_calls.ipynb": (
+        {"p1_ik": 3, "p1_pd": 2, "p1_ct": 3},
+        "graded",
+        ["p1_reach:", "the calls waited more than 4 s in all without computing"],
+    ),
 }
 BASELINE = ("master.ipynb", "student.ipynb")
 
@@ -382,3 +391,17 @@ def test_masters_get_full_marks_on_problem2(tmp_path):
     assert rows["master.ipynb"]["total"] == "10", rows["master.ipynb"]["reason"]
     assert rows["student.ipynb"]["total"] == "0"
     assert "p2_osct: not implemented yet" in rows["student.ipynb"]["reason"]
+
+
+def test_a_notebook_of_the_older_format_is_read_like_a_current_one():
+    """Jupyter still opens format 3 (worksheets of cells, code in ``input``); the grader reads it
+    too, instead of calling it unreadable and scoring zero."""
+    from labsupport.instructor.judge import read_cells
+
+    current = nbformat.read(ROOT / "notebooks" / "masters" / "problem1_reaching.ipynb", as_version=4)
+    code = [c.source for c in current.cells if c.cell_type == "code"]
+    older = nbformat.writes(nbformat.convert(current, 3), version=3).encode()  # converts in place
+    assert b'"worksheets"' in older and b'"input"' in older
+    assert [src for _, src in read_cells(older)] == code
+    with pytest.raises(ValueError, match="nested too deeply"):
+        read_cells(b"[" * 100000 + b"]" * 100000)

@@ -19,7 +19,9 @@ waits measurably; that row is then marked "timed out: regrade", with no score.
 The sandbox answers on a pipe, one JSON line per request, tagged with the request's nonce. The
 judge reads whatever arrives, checking the limits above all the while, and never waits for a
 line to end: a submission that writes into that pipe itself (half a line, then silence; or an
-endless line, stopped at :data:`MAX_ANSWER`) cannot hold the judge or fill its memory.
+endless line, stopped at :data:`MAX_ANSWER`) cannot hold the judge or fill its memory, and one
+that alters the answers (an answer that does not parse, or fields of the wrong kind) is stopped
+or ignored, never trusted.
 """
 
 from __future__ import annotations
@@ -64,6 +66,10 @@ class Budget:
         call: CPU time of one call of a student's function.
         check: CPU time of the student's code over one check (a simulation calls it every step).
         idle: time one cell or call may wait without being runnable [s].
+        run_idle: time all cells together may wait [s] (a notebook that pauses for an animation
+            or two stays well within it).
+        check_idle: time the student's calls may wait in all over one check [s] (a function that
+            sleeps a little at every control step would otherwise hold the grader for hours).
         wall: wall-clock backstop for the whole submission [s]; past it the row says "timed out: regrade".
     """
 
@@ -72,6 +78,8 @@ class Budget:
     call: float = 10.0
     check: float = 60.0
     idle: float = 20.0
+    run_idle: float = 60.0
+    check_idle: float = 20.0
     wall: float = 900.0
 
 
@@ -80,6 +88,9 @@ DEFAULT_BUDGET = Budget()
 
 #: How far past a limit the judge lets the sandbox go before stopping it itself.
 GRACE = 5.0
+#: When the judge first measures a request still unanswered [s], then every :data:`POLL`: waiting
+#: before the first measurement goes uncounted, so a call can hide at most this much each time.
+FIRST_POLL, POLL = 0.02, 0.25
 #: The most the sandbox may send back without ending a line [bytes]. An answer is a few hundred
 #: kilobytes at most (arrays are capped at ``sandbox.MAX_ELEMENTS``); more means the submission
 #: writes into the grader's channel itself.
@@ -90,9 +101,9 @@ class SandboxDied(StudentError):
     """The sandbox process ended (the notebook exited, crashed, or was stopped)."""
 
 
-class ChannelFlooded(SandboxDied):
-    """The submission wrote into the grader's answer channel, more than any answer holds; the
-    sandbox was stopped."""
+class ChannelTampered(SandboxDied):
+    """The submission wrote into the grader's answer channel: more than any answer holds, or an
+    answer (it carries the request's nonce) that does not parse; the sandbox was stopped."""
 
 
 class WallClockExceeded(Exception):
@@ -147,6 +158,7 @@ class SandboxProbe(Probe):
         self.starts = 0
         self.wall_deadline = time.monotonic() + budget.wall
         self.check_cpu_left = float("inf")  # set by the judge for each check
+        self.check_idle_left = float("inf")  # likewise
         self.cpu_seen = 0.0
         self.first_run: dict | None = None
         self.start_problem: str | None = None
@@ -182,7 +194,7 @@ class SandboxProbe(Probe):
                 self.budget.run,
                 per_check=False,
             )
-        except (StudentTimeout, ChannelFlooded) as err:
+        except (StudentTimeout, ChannelTampered) as err:
             self.start_problem = f"the notebook's cells did not finish: {err}"
             raise type(err)(self.start_problem) from None
         except SandboxDied:
@@ -209,7 +221,11 @@ class SandboxProbe(Probe):
 
     def _request(self, payload: dict, cpu_limit: float, per_check: bool = True) -> dict:
         """Send one request; wait for its answer while the sandbox stays within ``cpu_limit`` CPU
-        seconds, the idle limit, the check's CPU budget and the wall-clock backstop."""
+        seconds, the idle limits, the check's budgets and the wall-clock backstop.
+
+        Idle time is limited per call and, over a check, in all (:attr:`Budget.check_idle`); the
+        cells' run (``per_check=False``) in all (:attr:`Budget.run_idle`), each cell being stopped
+        by the sandbox's own watch when it waits longer than :attr:`Budget.idle`."""
         nonce = secrets.token_hex(8)
         payload["nonce"] = nonce
         try:
@@ -219,44 +235,68 @@ class SandboxProbe(Probe):
             self.stop()
             raise SandboxDied("the submission's process has ended") from None
         fd = self.proc.stdout.fileno()
+        sent = time.monotonic()
         cpu0 = busy0 = None
-        next_poll = time.monotonic() + 0.25
+        idle = 0.0
+        next_poll = sent + FIRST_POLL
         while True:
-            # The limits are checked every 0.25 s, also while the sandbox keeps sending: a
+            # The limits are checked at every poll, also while the sandbox keeps sending: a
             # submission that writes into the channel itself must not hold the judge here.
             if time.monotonic() >= next_poll:
-                next_poll = time.monotonic() + 0.25
+                next_poll = time.monotonic() + POLL
                 if time.monotonic() > self.wall_deadline:
                     self.stop()
                     raise WallClockExceeded(f"grading took more than {self.budget.wall:g} s of wall-clock time")
                 cpu, busy = tree_cpu(self.proc.pid), _busy(self._server_pid())
                 if cpu0 is None:  # measured from the first poll: a quick answer costs no /proc reads
-                    cpu0, busy0 = cpu - 0.25, busy
+                    cpu0, busy0 = cpu - (time.monotonic() - sent), busy
                 limit = min(cpu_limit, self.check_cpu_left) if per_check else cpu_limit
                 if cpu - cpu0 > limit + GRACE:
                     self.stop()
                     raise StudentTimeout(f"it used more than {limit:g} s of CPU time")
                 idle = (busy[0] - busy0[0]) - (busy[1] - busy0[1])
-                if idle > self.budget.idle + GRACE:
-                    self.stop()
-                    raise StudentTimeout(f"it waited more than {self.budget.idle:g} s without computing")
+                self._check_idle(idle, per_check)
             answer = self._answer(fd, nonce, wait=max(0.0, next_poll - time.monotonic()))
             if answer is not None:
                 cpu = float(answer.get("cpu", 0.0)) if isinstance(answer.get("cpu"), (int, float)) else 0.0
                 if per_check:
                     self.check_cpu_left -= max(0.0, cpu - self.cpu_seen)
+                    self.check_idle_left -= idle
                 self.cpu_seen = cpu
                 if per_check and self.check_cpu_left < 0:
                     raise StudentTimeout(
                         f"the check ran out of CPU time ({self.budget.check:g} s for the submission's code)"
                     )
+                if per_check and self.check_idle_left < 0:
+                    raise StudentTimeout(self._waited_in_all())
                 return answer
+
+    def _check_idle(self, idle: float, per_check: bool) -> None:
+        """Stop the sandbox if the request has waited ``idle`` seconds beyond its limits."""
+        if not per_check:
+            if idle > self.budget.run_idle + GRACE:
+                self.stop()
+                raise StudentTimeout(f"its cells waited more than {self.budget.run_idle:g} s in all without computing")
+            return
+        if idle > self.budget.idle + GRACE:
+            self.stop()
+            raise StudentTimeout(f"it waited more than {self.budget.idle:g} s without computing")
+        if idle > self.check_idle_left + GRACE:
+            self.stop()
+            raise StudentTimeout(self._waited_in_all())
+
+    def _waited_in_all(self) -> str:
+        return (
+            f"over this check, the calls waited more than {self.budget.check_idle:g} s in all without computing "
+            "(sleep, input, a blocked read): a control law must return at once"
+        )
 
     def _answer(self, fd: int, nonce: str, wait: float) -> dict | None:
         """The answer carrying ``nonce`` among the complete lines the sandbox has sent within
         ``wait`` seconds, or None. Reads what is there without waiting for a line's end (a
         submission that writes half a line into the channel cannot block the judge), keeps
-        the unfinished rest for the next call, and skips lines that are not answers."""
+        the unfinished rest for the next call, and skips lines that are not answers. A line that
+        carries the nonce and does not parse was altered by the submission: it stops the sandbox."""
         if not select.select([fd], [], [], wait)[0]:
             return None
         chunk = os.read(fd, 1 << 16)
@@ -267,7 +307,7 @@ class SandboxProbe(Probe):
         if b"\n" not in chunk:
             if len(self.unread) > MAX_ANSWER:
                 self.stop()
-                raise ChannelFlooded(f"it wrote more than {MAX_ANSWER >> 20} MiB into the grader's channel")
+                raise ChannelTampered(f"it wrote more than {MAX_ANSWER >> 20} MiB into the grader's channel")
             return None
         *lines, rest = self.unread.split(b"\n")
         self.unread = bytearray(rest)
@@ -277,8 +317,9 @@ class SandboxProbe(Probe):
                 continue  # not ours: only the answer carries the nonce
             try:
                 answer = json.loads(line)
-            except ValueError:
-                continue  # not ours
+            except (ValueError, RecursionError):  # RecursionError: nested a hundred thousand deep
+                self.stop()
+                raise ChannelTampered("the notebook altered an answer in the grader's channel") from None
             if isinstance(answer, dict) and answer.get("nonce") == nonce:
                 return answer
         return None
@@ -387,26 +428,42 @@ def _decode(name: str, answer: dict, call: bool = False):
 
 
 def read_cells(text: bytes) -> list[tuple[int, str]]:
-    """``(cell index, source)`` of every code cell; ValueError with a plain reason if unreadable."""
+    """``(cell index, source)`` of every code cell; ValueError with a plain reason if unreadable.
+
+    Reads the notebook format 4 (``cells``, each with a ``source``) and the older format 3 that
+    Jupyter still opens (``worksheets`` of cells, a code cell's text in ``input``)."""
     try:
         nb = json.loads(text.decode("utf-8"))
     except UnicodeDecodeError:
         raise ValueError("not a notebook: the file is not UTF-8 text") from None
     except json.JSONDecodeError as err:
         raise ValueError(f"not a valid notebook: invalid JSON ({err.msg} at line {err.lineno})") from None
+    except RecursionError:
+        raise ValueError("not a valid notebook: its JSON is nested too deeply") from None
+    if isinstance(nb, dict) and nb.get("nbformat") == 3 and isinstance(nb.get("worksheets"), list):
+        sheets = [w.get("cells") for w in nb["worksheets"] if isinstance(w, dict)]
+        nb = {"cells": [c for cells in sheets if isinstance(cells, list) for c in cells], "source_key": "input"}
     if not isinstance(nb, dict) or not isinstance(nb.get("cells"), list):
         raise ValueError("not a valid notebook: no list of cells")
+    source_key = nb.get("source_key", "source")
     cells = []
     for k, cell in enumerate(nb["cells"]):
         if not isinstance(cell, dict) or cell.get("cell_type") != "code":
             continue
-        src = cell.get("source", "")
+        src = cell.get(source_key, "")
         if isinstance(src, list):
             src = "".join(s for s in src if isinstance(s, str))
         if not isinstance(src, str):
             raise ValueError(f"not a valid notebook: cell {k} has no readable source")
         cells.append((k, src))
     return cells
+
+
+def _listed(answer: dict, key: str) -> list:
+    """``answer[key]`` if it is a list, else an empty one: an answer comes from the submission's
+    process, which may have tampered with it."""
+    value = answer.get(key) if isinstance(answer, dict) else None
+    return value if isinstance(value, list) else []
 
 
 def run_check(check, probe: Probe, seed: int) -> Result:
@@ -450,10 +507,13 @@ def grade(
         except StudentError as err:
             notes.append(str(err))
         if probe.first_run:
-            for k, text in probe.first_run.get("errors", [])[:5]:
+            for entry in _listed(probe.first_run, "errors")[:5]:
+                if not (isinstance(entry, list) and [type(x) for x in entry] == [int, str]):
+                    continue  # not what the sandbox writes
+                k, text = entry
                 cell_index = cells[k][0] if 0 <= k < len(cells) else k
                 notes.append(f"cell {cell_index} {text if text.startswith('timed out') else 'raised ' + text}")
-            patched = probe.first_run.get("patched", [])
+            patched = [p for p in _listed(probe.first_run, "patched") if isinstance(p, str)]
             if patched:
                 notes.append(
                     "the notebook replaced "
@@ -462,7 +522,7 @@ def grade(
                     + " (no effect on grading: the checks run in a separate process)"
                 )
         for name in names:
-            probe.check_cpu_left = budget.check
+            probe.check_cpu_left, probe.check_idle_left = budget.check, budget.check_idle
             try:
                 if probe.start_problem is not None:  # the notebook itself never finished: nothing to check
                     raise StudentError(f"not graded: {probe.start_problem}")
@@ -491,7 +551,7 @@ def grade(
         probe.stop()
 
     for label in ("wrote", "changed", "deleted"):
-        paths = files.get(label, [])
+        paths = [p for p in _listed(files, label) if isinstance(p, str)]
         if paths:
             notes.append(
                 f"the notebook {label} files: {', '.join(paths[:5])}"
@@ -503,8 +563,8 @@ def grade(
             notes.append(f"{name}: not implemented yet")
         elif statuses[name] != PASS and probe.start_problem is None:
             notes.append(f"{name}: {messages[name]}")
-    return {
-        "status": "graded",
+    return {  # a check the grader itself could not run leaves the row unrecorded (grade it again or by hand)
+        "status": "error" if "error" in statuses.values() else "graded",
         "scores": scores,
         "messages": messages,
         "notes": notes,

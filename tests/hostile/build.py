@@ -173,6 +173,38 @@ while True:
             pass
 """
 
+#: Alter the cells' run answer in the sandbox's own json.dumps: a number where the grader reads
+#: a list of cell errors.
+TAMPERS_ANSWERS = r"""
+import json
+honest_dumps = json.dumps
+def altered(obj, *args, **kwargs):
+    if isinstance(obj, dict) and "errors" in obj:
+        obj = dict(obj, errors=5, patched=7)
+    return honest_dumps(obj, *args, **kwargs)
+json.dumps = altered
+"""
+
+#: An answer nested too deeply for any JSON parser: the grader must not crash on it.
+CORRUPTS_ANSWERS = r"""
+import json
+honest_dumps = json.dumps
+def altered(obj, *args, **kwargs):
+    text = honest_dumps(obj, *args, **kwargs)
+    return text[:-1] + ', "x": ' + "[" * 100000 + "]" * 100000 + "}" if '"errors"' in text else text
+json.dumps = altered
+"""
+
+#: A correct law that sleeps at every control step of a run: the calls' waiting adds up over a check.
+SLEEPS_IN_CALLS = r"""
+import time
+honest_ct = ct_joint_torque
+def ct_joint_torque(model, data, q_d, Kp, Kd):
+    if data.time > 0:  # the test states of the p1_ct check are at t = 0; a run's steps are not
+        time.sleep(0.5)
+    return honest_ct(model, data, q_d, Kp, Kd)
+"""
+
 
 def memoriser(table: dict) -> str:
     """A notebook cell answering the public checks from a lookup table (and nothing else)."""
@@ -263,6 +295,11 @@ def hostile() -> dict[str, object]:
     out["hangs_in_call.ipynb"] = replace_function(
         m(), "pd_torque", "def pd_torque(model, data, q_d, Kp, Kd):\n    while True:\n        pass"
     )
+    nb = m()
+    for k in range(3):  # each cell waits less than a cell may, together more
+        nb = insert_after(nb, _imports(master) + k, f"import time\ntime.sleep(3.5)  # pause {k + 1}")
+    out["sleeps_between_cells.ipynb"] = nb
+    out["sleeps_in_calls.ipynb"] = insert_after(m(), len(master.cells) - 1, SLEEPS_IN_CALLS)
     out["kills_grader.ipynb"] = insert_after(
         m(), _imports(master), "import os, signal\nos.kill(os.getppid(), signal.SIGKILL)\nos.kill(-1, signal.SIGKILL)"
     )
@@ -307,6 +344,8 @@ def hostile() -> dict[str, object]:
     out["fork_bomb.ipynb"] = insert_after(s(), _imports(student), FORK_BOMB)
     out["blocks_channel.ipynb"] = insert_after(s(), _imports(student), BLOCKS_CHANNEL)
     out["floods_channel.ipynb"] = insert_after(s(), _imports(student), FLOODS_CHANNEL)
+    out["tampers_answers.ipynb"] = insert_after(s(), _imports(student), TAMPERS_ANSWERS)
+    out["corrupts_answers.ipynb"] = insert_after(s(), _imports(student), CORRUPTS_ANSWERS)
     nb = s()
     for fname in TODO_FUNCTIONS:
         del nb.cells[_defining(nb, fname)]
