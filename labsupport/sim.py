@@ -81,7 +81,11 @@ class SimulationDiverged(RuntimeError):
     """The simulation blew up; ``t``, ``qpos`` and ``qvel`` hold where and how."""
 
     #: What to do about a run that ran away: the advice unless a more specific one is given.
-    RUNAWAY_ADVICE = "Lower the gains, clip the torque, or check the controller for a sign error."
+    RUNAWAY_ADVICE = (
+        "Lower the gains, clip the torque, or check the controller for a sign error; with a Cartesian "
+        "target, check that it is within the arm's reach (near the edge of the workspace J is nearly "
+        "singular and J⁻¹ huge)."
+    )
 
     def __init__(self, t: float, qpos: np.ndarray, qvel: np.ndarray, reason: str, advice: str = RUNAWAY_ADVICE):
         self.t, self.qpos, self.qvel, self.reason = t, np.array(qpos), np.array(qvel), reason
