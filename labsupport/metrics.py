@@ -110,6 +110,13 @@ def settling_time(t, y, final: float, initial: float, band: float = 0.02) -> flo
     return float(t[last] + frac * (t[last + 1] - t[last]))
 
 
+def _natural_frequency_and_damping(wn, zeta) -> tuple[float, float]:
+    r""":math:`\omega_n > 0` and :math:`\zeta \ge 0` checked: the closed forms below are those of a
+    stable second-order system (a negative :math:`\zeta` grows without bound, and
+    :math:`\zeta \le -1` gave NaN)."""
+    return validate.number("wn", wn, positive=True), validate.number("zeta", zeta, nonnegative=True)
+
+
 def second_order_step(t, wn: float, zeta: float):
     r"""Closed-form unit step response of :math:`\ddot y + 2\zeta\omega_n\dot y + \omega_n^2 y = \omega_n^2 u(t)`.
 
@@ -126,7 +133,8 @@ def second_order_step(t, wn: float, zeta: float):
     >>> print(f"{overshoot(y, final=1.0, initial=0.0):.2f} %, settles at {settling_time(t, y, 1.0, 0.0):.3f} s")
     16.30 %, settles at 4.038 s
     """
-    t = np.asarray(t, dtype=float)
+    t = validate.times(t)
+    wn, zeta = _natural_frequency_and_damping(wn, zeta)
     if zeta < 1:
         wd = wn * np.sqrt(1 - zeta**2)
         return 1 - np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta / np.sqrt(1 - zeta**2) * np.sin(wd * t))
@@ -141,8 +149,9 @@ def second_order_error(t, e0, edot0, wn: float, zeta: float):
     r"""Closed-form free response of :math:`\ddot e + 2\zeta\omega_n\dot e + \omega_n^2 e = 0` from
     :math:`e(0)=e_0`, :math:`\dot e(0)=\dot e_0` (any :math:`\zeta>0`); broadcasts over components.
     """
-    t = np.asarray(t, dtype=float)[..., None] if np.ndim(e0) else np.asarray(t, dtype=float)
+    t = validate.times(t)[..., None] if np.ndim(e0) else validate.times(t)
     e0, edot0 = np.asarray(e0, dtype=float), np.asarray(edot0, dtype=float)
+    wn, zeta = _natural_frequency_and_damping(wn, zeta)
     a = zeta * wn
     if zeta < 1:
         wd = wn * np.sqrt(1 - zeta**2)

@@ -248,6 +248,11 @@ def test_step_metrics_refuse_what_would_give_a_wrong_number():
         metrics.settling_time(t, y, 1.0, 1.0)
     with pytest.raises(ValueError, match="got None"):
         metrics.rms_norm(None)
+    for wn, zeta, name in ((0.0, 0.5, "wn must be positive"), (2.0, -2.0, "zeta must be non-negative")):
+        with pytest.raises(ValueError, match=name):
+            metrics.second_order_step(t, wn, zeta)
+        with pytest.raises(ValueError, match=name):
+            metrics.second_order_error(t, 1.0, 0.0, wn, zeta)
     with pytest.raises(ValueError, match="one torque per time.*t of shape \\(1001,\\) and tau of shape \\(1000,\\)"):
         metrics.cumulative_effort(t, y[:-1])
 
