@@ -82,7 +82,11 @@ NOTHING = ["not implemented yet"]
 EXPECTED = {
     "master.ipynb": (FULL, "graded", []),
     "student.ipynb": ({}, "graded", ["p1_ik: not implemented yet", "p1_reach: not implemented yet"]),
-    "raises.ipynb": ({"p1_ik": 3, "p1_pd": 2}, "graded", ["raised ZeroDivisionError", "work in progress"]),
+    "raises.ipynb": (
+        {"p1_ik": 3, "p1_pd": 2},
+        "graded",
+        ["('ratio = 1 / 0   # a bug at the top') raised ZeroDivisionError", "work in progress"],
+    ),
     "hangs_cell.ipynb": (FULL, "graded", ["timed out (cpu)"]),
     "hangs_forever.ipynb": ({}, "graded", ["cells waited more than 12 s in all without computing"]),
     "hangs_in_call.ipynb": ({"p1_ik": 3, "p1_ct": 3, "p1_reach": 2}, "graded", ["p1_pd:", "did not return"]),

@@ -459,6 +459,13 @@ def read_cells(text: bytes) -> list[tuple[int, str]]:
     return cells
 
 
+def _cell_named(index: int, source: str) -> str:
+    """A cell as a student finds it in Jupyter, which shows no cell numbers: its place among all
+    cells (counted from 1) and its first line."""
+    first = next((line.strip() for line in source.splitlines() if line.strip()), "")
+    return f"cell {index + 1} ({first[:40] + ('…' if len(first) > 40 else '')!r})"
+
+
 def _listed(answer: dict, key: str) -> list:
     """``answer[key]`` if it is a list, else an empty one: an answer comes from the submission's
     process, which may have tampered with it."""
@@ -511,8 +518,8 @@ def grade(
                 if not (isinstance(entry, list) and [type(x) for x in entry] == [int, str]):
                     continue  # not what the sandbox writes
                 k, text = entry
-                cell_index = cells[k][0] if 0 <= k < len(cells) else k
-                notes.append(f"cell {cell_index} {text if text.startswith('timed out') else 'raised ' + text}")
+                what = text if text.startswith("timed out") else "raised " + text
+                notes.append(f"{_cell_named(*cells[k]) if 0 <= k < len(cells) else f'code cell {k + 1}'} {what}")
             patched = [p for p in _listed(probe.first_run, "patched") if isinstance(p, str)]
             if patched:
                 notes.append(
