@@ -5,10 +5,14 @@ Usage (from the repository root)::
     .venv/bin/python -m labsupport.instructor.batch --problem problem1 SUBMISSIONS --out grades/problem1
 
 ``--problem NAME`` reads the autograder spec ``tests/autograder/NAME.json`` (or give
-``--spec PATH``). Every ``*.ipynb`` in SUBMISSIONS gets a row in ``OUT/grades.csv`` (a score
-per check, the total, a status and a reason) and a ``OUT/feedback/<file>.txt``, whatever the
-file does; ``OUT/batch.json`` records the seed, the spec, the date and the versions, so that
-``--seed`` reproduces every grade.
+``--spec PATH``). Every ``*.ipynb`` in SUBMISSIONS (``.IPYNB`` too: any case) gets a row in
+``OUT/grades.csv`` (a score per check, the total, a status and a reason) and a
+``OUT/feedback/<file>.txt``, whatever the file does; the other files are named on stderr and
+left aside. ``OUT/batch.json`` records the seed, the spec, the date and the versions, so that
+``--seed`` reproduces every grade. A row whose grading failed ("error") or ran out of wall-clock
+time ("timed out: regrade") gets no score, never a zero. Every message is written on one line,
+without control characters (student code writes into them); the files are the owner's alone
+when run as a command, and feedback files left in OUT by an earlier batch are removed.
 
 How a submission is isolated:
 
@@ -23,7 +27,8 @@ How a submission is isolated:
 * the limits that decide a score count CPU time and idle waiting, never wall time, so a busy
   machine cannot change a score; a generous wall-clock backstop marks a row "timed out:
   regrade" instead of scoring it;
-* results are kept in memory and written at the end, atomically.
+* the output folder is checked before anything is graded; results are kept in memory and
+  written at the end, atomically.
 
 Where bubblewrap cannot run the grader refuses, saying what to do; ``--unsafe-no-sandbox``
 grades without isolation (for submissions you trust) and says so in every row.
@@ -50,9 +55,15 @@ from pathlib import Path
 from labsupport.grading import registry
 from labsupport.instructor import isolation, judge
 from labsupport.instructor.assign import SPEC_DIR
+from labsupport.instructor.canvas import clean_text, keep_private
 
 #: The note every row carries when the batch ran without a sandbox.
 UNSAFE_NOTE = "graded WITHOUT a sandbox (--unsafe-no-sandbox): only for submissions you trust"
+#: Statuses of rows that carry no score (the grader failed, or the wall-clock backstop ran out):
+#: their score cells stay blank, never 0, and their feedback says the score is not recorded.
+UNSCORED = ("error", judge.REGRADE)
+#: How every feedback file this grader writes begins (how a stale one is recognised).
+FEEDBACK_HEADER = "Feedback on "
 
 
 def new_seed() -> int:
@@ -60,11 +71,29 @@ def new_seed() -> int:
     return secrets.randbits(48)
 
 
+def is_notebook(path: Path) -> bool:
+    """Whether ``path`` is named as a notebook: ``.ipynb`` in any case (``.IPYNB`` too)."""
+    return path.name.lower().endswith(".ipynb")
+
+
+def list_notebooks(folder: Path) -> list[Path]:
+    """The notebooks at the top of ``folder``, sorted; names every other entry on stderr, so
+    that nothing is left aside unsaid."""
+    entries = sorted(Path(folder).iterdir())
+    ignored = [p.name + ("/" if p.is_dir() else "") for p in entries if not is_notebook(p)]
+    if ignored:
+        print(
+            "not graded (not .ipynb files): " + clean_text(", ".join(ignored)),
+            file=sys.stderr,
+        )
+    return [p for p in entries if is_notebook(p)]
+
+
 def feedback_text(name: str, spec: dict, row: dict) -> str:
     """The feedback file of one student: total, then each check's score and message, then notes."""
-    lines = [f"Feedback on {name} ({spec['problem']})", ""]
+    lines = [f"{FEEDBACK_HEADER}{clean_text(name)} ({spec['problem']})", ""]
     maximum = sum(float(c["points"]) for c in spec["checks"])
-    if row["status"] == judge.REGRADE:
+    if row["status"] in UNSCORED:
         lines.append(f"Score: not recorded / {maximum:g}   (status: {row['status']})")
     else:
         total = sum(row["scores"].get(c["name"], 0.0) for c in spec["checks"])
@@ -73,10 +102,12 @@ def feedback_text(name: str, spec: dict, row: dict) -> str:
     for c in spec["checks"]:
         msg = row["messages"].get(c["name"], "not graded: " + "; ".join(row["notes"][:1]))
         got = row["scores"].get(c["name"])
-        lines.append(f"- {c['name']} ({'-' if got is None else f'{got:g}'} / {float(c['points']):g}): {msg}")
+        lines.append(
+            f"- {c['name']} ({'-' if got is None else f'{got:g}'} / {float(c['points']):g}): {clean_text(msg)}"
+        )
     notes = [n for n in row["notes"] if not any(n.startswith(c["name"] + ":") for c in spec["checks"])]
     if notes:
-        lines += ["", "Notes:"] + [f"- {n}" for n in notes]
+        lines += ["", "Notes:"] + [f"- {clean_text(n)}" for n in notes]
     return "\n".join(lines) + "\n"
 
 
@@ -119,7 +150,7 @@ def run_batch(
     unsafe_no_sandbox: bool = False,
     budget: judge.Budget | None = None,
 ) -> list[dict]:
-    """Grade every ``*.ipynb`` in ``submissions``; writes ``out/grades.csv``, ``out/feedback/`` and
+    """Grade every notebook in ``submissions``; writes ``out/grades.csv``, ``out/feedback/`` and
     ``out/batch.json``.
 
     Args:
@@ -129,14 +160,17 @@ def run_batch(
         budget: the CPU and idle limits (default :class:`labsupport.instructor.judge.Budget`).
 
     Raises:
-        ValueError: ``submissions`` is not a folder.
+        ValueError: ``submissions`` is not a folder, ``seed`` is negative, or ``out`` cannot be
+            written (checked before grading).
         isolation.SandboxUnavailable: bubblewrap cannot run here (the message says what to do).
     """
+    if seed is not None and seed < 0:
+        raise ValueError(f"the seed must be a whole number, 0 or more; got --seed {seed}")
     spec_path = Path(spec_path).resolve()
     spec = json.loads(spec_path.read_text(encoding="utf-8"))
     if not Path(submissions).is_dir():
         raise ValueError(f"submissions must be a folder of .ipynb files; {submissions} is not a folder")
-    files = sorted(p for p in Path(submissions).iterdir() if p.name.endswith(".ipynb"))
+    files = list_notebooks(submissions)
     payloads = []
     for p in files:  # read everything first: nothing a submission does later can lose another one
         try:
@@ -159,13 +193,14 @@ def run_batch(
         else:
             layout, unsafe_root = isolation.prepare(tmp), None
             sandbox = subprocess.run([layout.bwrap, "--version"], capture_output=True, text=True).stdout.strip()
+        prepare_output(Path(out))
         task = partial(_grade_row, spec=spec, seed=seed, layout=layout, unsafe_root=unsafe_root, budget=budget)
         rows = []
         context = multiprocessing.get_context("fork")
         with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
             for row in pool.map(task, payloads):
                 rows.append(row)
-                print(f"graded {row['file']}: {row['status']} in {row['seconds']:g} s", flush=True)
+                print(f"graded {clean_text(row['file'])}: {row['status']} in {row['seconds']:g} s", flush=True)
     elapsed = time.monotonic() - start
     record = {
         "problem": spec["problem"],
@@ -208,26 +243,85 @@ def _mujoco_version() -> str:
     return mujoco.__version__
 
 
-def _write_results(out: Path, spec: dict, rows: list[dict], record: dict) -> None:
+def prepare_output(out: Path) -> None:
+    """Create ``out`` and ``out/feedback`` and make sure files can be written in them, before
+    anything is graded: the results are written at the end, and would be lost then.
+
+    Raises:
+        ValueError: the folder cannot be created or written (the message says why).
+    """
+    try:
+        (out / "feedback").mkdir(parents=True, exist_ok=True)
+        for folder in (out, out / "feedback"):
+            with tempfile.NamedTemporaryFile(dir=folder, prefix=".write-test-"):
+                pass
+    except OSError as err:
+        raise ValueError(
+            f"cannot write the output folder {out} ({err.strerror or err}): give --out a folder you can write to"
+        ) from None
+
+
+def grades_csv(spec: dict, rows: list[dict], seed: int) -> str:
+    """The text of ``grades.csv``: a row per submission; an unscored row's score cells are blank."""
     names = [c["name"] for c in spec["checks"]]
     maximum = sum(float(c["points"]) for c in spec["checks"])
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(["file", "problem", *names, "total", "max", "status", "reason", "seed"])
     for row in rows:
-        reason = "; ".join(row["notes"]) if row["notes"] else "all checks passed"
-        if row["status"] == judge.REGRADE:  # no score at all, rather than a zero
+        reason = "; ".join(clean_text(n) for n in row["notes"]) if row["notes"] else "all checks passed"
+        if row["status"] in UNSCORED:  # no score at all, rather than a zero
             cells = [""] * len(names) + [""]
         else:
             scores = [row["scores"].get(n, 0.0) for n in names]
             cells = [f"{s:g}" for s in scores] + [f"{sum(scores):g}"]
-        writer.writerow([row["file"], spec["problem"], *cells, f"{maximum:g}", row["status"], reason, record["seed"]])
+        writer.writerow([clean_text(row["file"]), spec["problem"], *cells, f"{maximum:g}", row["status"], reason, seed])
+    return buf.getvalue()
+
+
+def feedback_names(files: list[str]) -> dict[str, str]:
+    """Each submission's feedback file name, ``<stem>.txt``; a stem already taken in any case
+    (``a.ipynb`` and ``a.IPYNB``) gets ``<stem>-2.txt``, and so on: no feedback overwrites another."""
+    names, taken = {}, set()
+    for file in files:
+        stem = Path(file).stem
+        name, k = f"{stem}.txt", 2
+        while name.casefold() in taken:
+            name, k = f"{stem}-{k}.txt", k + 1
+        taken.add(name.casefold())
+        names[file] = name
+    return names
+
+
+def remove_stale_feedback(folder: Path, keep: set[str]) -> None:
+    """Delete the feedback files an earlier batch left in ``folder`` (a regrade into the same
+    ``--out``), so that it matches ``grades.csv``; only ``*.txt`` files this grader wrote (they
+    begin with :data:`FEEDBACK_HEADER`) are touched. Names are compared in any case, as a
+    case-insensitive file system would."""
+    keep = {name.casefold() for name in keep}
+    header = FEEDBACK_HEADER.encode()
+    for path in folder.iterdir():
+        if path.name.casefold() in keep or not path.name.endswith(".txt") or path.is_symlink() or not path.is_file():
+            continue
+        try:
+            with open(path, "rb") as f:
+                stale = f.read(len(header)) == header
+            if stale:
+                path.unlink()
+        except OSError:  # not this grader's to remove
+            continue
+
+
+def _write_results(out: Path, spec: dict, rows: list[dict], record: dict) -> None:
+    """Write ``grades.csv``, a feedback file per row and ``batch.json`` into ``out``; then remove
+    the feedback files of an earlier batch."""
     out = Path(out)
-    (out / "feedback").mkdir(parents=True, exist_ok=True)
-    _atomic_write(out / "grades.csv", buf.getvalue())
+    _atomic_write(out / "grades.csv", grades_csv(spec, rows, record["seed"]))
+    names = feedback_names([row["file"] for row in rows])
     for row in rows:
-        _atomic_write(out / "feedback" / (Path(row["file"]).stem + ".txt"), feedback_text(row["file"], spec, row))
+        _atomic_write(out / "feedback" / names[row["file"]], feedback_text(row["file"], spec, row))
     _atomic_write(out / "batch.json", json.dumps(record, indent=2) + "\n")
+    remove_stale_feedback(out / "feedback", set(names.values()))
 
 
 def _atomic_write(path: Path, text: str) -> None:
@@ -243,12 +337,19 @@ def _check_submissions_folder(parser: argparse.ArgumentParser, folder: Path) -> 
             f"{folder} is a zip file: for Canvas's 'Download Submissions' zip run "
             "python -m labsupport.instructor.canvas (see the README); otherwise unzip it into a folder"
         )
-    if folder.is_dir() and not any(p.name.endswith(".ipynb") for p in folder.iterdir()):
-        nested = sum(1 for _ in folder.rglob("*.ipynb"))
+    if folder.is_dir() and not any(is_notebook(p) for p in folder.iterdir()):
+        nested = sum(1 for p in folder.rglob("*") if is_notebook(p))
         parser.error(
             f"no .ipynb file in {folder}"
             + (f"; its subfolders hold {nested}: give the folder that holds them" if nested else "")
         )
+
+
+def seed_argument(text: str) -> int:
+    """``--seed``'s value: a whole number, 0 or more (the test states' generator takes no other)."""
+    if not (text.isascii() and text.isdigit()):
+        raise argparse.ArgumentTypeError(f"give a whole number, 0 or more (as batch.json records it), not {text!r}")
+    return int(text)
 
 
 def main(argv=None) -> None:
@@ -268,7 +369,7 @@ def main(argv=None) -> None:
     )
     parser.add_argument(
         "--seed",
-        type=int,
+        type=seed_argument,
         default=None,
         help="seed of the test states (default: a fresh secret one; batch.json records it)",
     )
@@ -307,4 +408,5 @@ def main(argv=None) -> None:
 
 
 if __name__ == "__main__":
+    keep_private()
     main()

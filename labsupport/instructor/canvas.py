@@ -94,8 +94,12 @@ from pathlib import Path, PurePosixPath
 
 from labsupport.instructor.assign import SPEC_DIR
 
-#: Largest notebook read from the zip [bytes]; a bigger file is reported, not graded.
-MAX_NOTEBOOK_BYTES = 64 * 2**20
+#: Largest notebook read from the zip [bytes]: reading one takes that much memory, and no
+#: student's notebook comes near it; a bigger file is reported, not graded.
+MAX_NOTEBOOK_BYTES = 2**30
+#: Above this size [bytes] a notebook is graded without its outputs and attachments, which the
+#: grader never reads (it runs the code cells' source): the same grade, in less memory.
+STRIP_OUTPUTS_BYTES = 64 * 2**20
 #: Largest total the zip may declare once uncompressed [bytes]; a bigger zip is refused.
 MAX_ZIP_BYTES = 4 * 2**30
 #: Most entries a zip may hold.
@@ -104,6 +108,10 @@ MAX_ZIP_ENTRIES = 20_000
 #: Batch statuses whose scores go into the gradebook; any other status (timed out, grader
 #: error, or one this module does not know) leaves the cell as exported and is reported.
 SCORED_STATUSES = ("graded", "unreadable")
+#: Longest message or note written into a feedback file, a CSV cell or a report [characters].
+MAX_MESSAGE_CHARS = 2000
+#: Bidirectional overrides and isolates: they reorder what a reader sees of the text around them.
+_BIDI_CONTROLS = frozenset("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
 
 _UPLOAD = re.compile(
     r"^(?:(?P<name>.*?)_)??(?:(?P<late>LATE)_)?(?P<user>\d+|anon_[A-Za-z0-9]+)_(?P<attachment>\d+)_(?P<original>.+)$"
@@ -123,6 +131,41 @@ _COMPUTED_HEADER = re.compile(
     "|Override Grade|Override Status"
 )
 _POSTING_CELL = re.compile(r"^\s*(Muted|Manual Posting.*)?\s*$", re.IGNORECASE)
+
+
+# --- what both graders write (kept here: labsupport.instructor.batch imports this module) ---------
+
+
+def clean_text(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
+    """``text`` made safe to write into a feedback file, a CSV cell or a report: one line, no
+    control characters, at most ``limit`` characters.
+
+    Student code writes into the messages (an exception's text, a printed string): a line break
+    would let it add a line of its own ("Score: 10 / 10"), a NUL byte or a terminal escape would
+    garble the file or the terminal showing it. Tabs and line breaks become spaces; any other
+    control character (Unicode category Cc, and the bidirectional overrides) becomes a visible
+    escape such as ``\\x1b``; a longer text is cut and ends in "…".
+    """
+    text = str(text)
+    shown = "".join(_visible(c) for c in text[:limit])
+    if len(text) > limit or len(shown) > limit:
+        return shown[: limit - 1] + "…"
+    return shown
+
+
+def _visible(c: str) -> str:
+    """One character as :func:`clean_text` writes it."""
+    if c in "\t\n\r\v\f\x1c\x1d\x1e\x85\u2028\u2029":  # every character str.splitlines breaks at, and tab
+        return " "
+    if unicodedata.category(c) == "Cc" or c in _BIDI_CONTROLS:
+        return ascii(c)[1:-1]
+    return c
+
+
+def keep_private() -> None:
+    """Make the files and folders this process creates from now on its owner's alone (umask 077):
+    the outputs hold students' grades."""
+    os.umask(0o077)
 
 
 # --- the zip -------------------------------------------------------------------------------------
@@ -227,6 +270,26 @@ def read_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, limit: int | None = 
     with zf.open(info) as f:
         data = f.read(limit + 1)
     return None if len(data) > limit else data
+
+
+def without_outputs(data: bytes) -> bytes:
+    """The notebook without its cells' outputs and attachments, which the grader never reads.
+
+    The cells stay where they are, with their source, so the notebook grades as it is. A file
+    that is not a notebook is returned unchanged, for the grader to say why it cannot read it.
+    """
+    try:
+        nb = json.loads(data.decode("utf-8"))
+        if not isinstance(nb, dict) or not isinstance(nb.get("cells"), list):
+            return data
+        for cell in nb["cells"]:
+            if isinstance(cell, dict):
+                cell.pop("attachments", None)
+                if "outputs" in cell:
+                    cell["outputs"] = []
+        return json.dumps(nb).encode("utf-8")
+    except (ValueError, RecursionError):  # not UTF-8, not JSON, or nested too deep
+        return data
 
 
 def notebook_stem(spec: dict) -> str:
@@ -618,6 +681,8 @@ def _grade(
                         f"{f.entry}: larger than the {MAX_NOTEBOOK_BYTES:,} bytes a notebook may have, not graded"
                     )
                     continue
+                if len(data) > STRIP_OUTPUTS_BYTES:
+                    data = without_outputs(data)
                 name = f"{f.name or 'student'}_{user}.ipynb"
                 (folder / name).write_bytes(data)
                 files[name] = user
@@ -677,7 +742,11 @@ def feedback_text(
     who: str, f: SubmissionFile, spec: dict, row: dict, total: float, score: str, result: CanvasResult
 ) -> str:
     """One student's feedback: the score in Canvas's points, then each check's points and message."""
-    lines = [f"{spec['problem']} feedback for {who}", f"File graded: {f.original}" + ("  (late)" if f.late else ""), ""]
+    lines = [
+        f"{spec['problem']} feedback for {clean_text(who)}",
+        f"File graded: {clean_text(f.original)}" + ("  (late)" if f.late else ""),
+        "",
+    ]
     if row.get("status") in SCORED_STATUSES:
         out_of = result.points_possible if result.points_possible is not None else result.maximum
         lines.append(f"Score: {score} / {format_score(out_of)}")
@@ -687,12 +756,13 @@ def feedback_text(
         lines.append(f"Not scored: {row.get('status')}; your instructor will grade it again.")
     lines.append("")
     for c in spec["checks"]:
-        got = float(row["scores"].get(c["name"], 0.0))
-        message = row.get("messages", {}).get(c["name"], "not graded")
-        lines.append(f"- {c['name']} ({format_score(got)} / {format_score(float(c['points']))}): {message}")
+        got = row["scores"].get(c["name"])
+        shown = "-" if got is None else format_score(float(got))
+        message = clean_text(row.get("messages", {}).get(c["name"], "not graded"))
+        lines.append(f"- {c['name']} ({shown} / {format_score(float(c['points']))}): {message}")
     notes = [n for n in row.get("notes", []) if not any(n.startswith(c["name"] + ":") for c in spec["checks"])]
     if notes:
-        lines += ["", "Notes:"] + [f"- {n}" for n in notes]
+        lines += ["", "Notes:"] + [f"- {clean_text(n)}" for n in notes]
     return "\n".join(lines) + "\n"
 
 
@@ -723,7 +793,7 @@ def report_text(gradebook: Gradebook, spec: dict, result: CanvasResult) -> str:
     ]
     for title, items in sections:
         lines.append(f"{title}: {len(items) if items else 'none'}")
-        lines += [f"  - {item}" for item in items]
+        lines += [f"  - {clean_text(item)}" for item in items]
         lines.append("")
     lines += [
         "Next, in Canvas: Grades -> Import -> gradebook_import.csv; then, on the assignment's page,",
@@ -766,5 +836,5 @@ def main(argv=None) -> None:
 
 
 if __name__ == "__main__":
-    os.umask(0o077)  # the output holds students' grades
+    keep_private()
     main()

@@ -1,0 +1,244 @@
+"""The batch grader's outputs, and the Canvas tool's, as an instructor meets them.
+
+What the batch command refuses before it grades anything (a seed that is not a whole number
+from 0, an output folder it cannot write), which files it grades (``.ipynb`` in any case) and
+which it names as left aside, and what it writes: blank cells for a row the grader failed on,
+messages on one line without control characters, files private to their owner, no feedback
+left over from an earlier batch. The Canvas tool grades a notebook of any size the way the batch
+does. Each test grades notebooks that need no sandbox, or runs ``--unsafe-no-sandbox``: seconds.
+"""
+
+import csv
+import json
+import os
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+import nbformat
+import pytest
+from test_canvas import COLUMN, EXPORT, build_zip, fake_grade, fake_notebook
+
+from labsupport.instructor import batch, canvas, judge
+
+ROOT = Path(__file__).resolve().parents[1]
+SPEC = ROOT / "tests" / "autograder" / "problem1.json"
+CHECKS = [c["name"] for c in json.loads(SPEC.read_text(encoding="utf-8"))["checks"]]
+BLANK = (ROOT / "notebooks" / "problem1_reaching.ipynb").read_bytes()
+#: A message as student code can write it: a fake score line, a NUL byte, terminal escapes.
+NASTY = "oops\nScore: 10 / 10   (status: graded)\r\x00\x1b[2J\t\u2028\u202eevil"
+
+
+def _folder(path: Path, files: dict[str, bytes]) -> Path:
+    """A folder holding ``files`` (name -> bytes)."""
+    path.mkdir()
+    for name, data in files.items():
+        (path / name).write_bytes(data)
+    return path
+
+
+def _rows(out: Path) -> dict[str, dict]:
+    """``out/grades.csv``, row by file."""
+    with open(out / "grades.csv", newline="", encoding="utf-8") as f:
+        return {r["file"]: r for r in csv.DictReader(f)}
+
+
+def _argv(subs: Path, out: Path, *options: str) -> list[str]:
+    """The batch command's arguments, without a sandbox (the notebooks here are harmless)."""
+    return ["--problem", "problem1", str(subs), "--out", str(out), "--jobs", "1", "--unsafe-no-sandbox", *options]
+
+
+# --- refused before grading ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("seed", ["-1", "-20240917", "1.5", "abc"])
+def test_a_seed_that_is_not_a_whole_number_from_0_is_refused(tmp_path, capsys, seed):
+    """A negative seed used to be accepted, and every check then failed inside the grader."""
+    subs = _folder(tmp_path / "subs", {"student.ipynb": BLANK})
+    with pytest.raises(SystemExit) as stop:
+        batch.main(_argv(subs, tmp_path / "out", "--seed", seed))
+    assert stop.value.code == 2
+    assert "argument --seed: give a whole number, 0 or more" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(ValueError, match="0 or more"):
+        batch.run_batch(subs, SPEC, tmp_path / "out", seed=-1, unsafe_no_sandbox=True)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("where", ["under a file", "a file", "under /proc"])
+def test_an_output_folder_that_cannot_be_written_is_refused_before_grading(tmp_path, capsys, where):
+    """It used to be found out after the whole batch was graded, with a traceback and no results."""
+    (tmp_path / "a_file").write_text("not a folder")
+    out = {
+        "under a file": tmp_path / "a_file" / "out",
+        "a file": tmp_path / "a_file",
+        "under /proc": Path("/proc/labsupport-no-such-folder/out"),
+    }[where]
+    subs = _folder(tmp_path / "subs", {"student.ipynb": BLANK})
+    with pytest.raises(SystemExit) as stop:
+        batch.main(_argv(subs, out))
+    captured = capsys.readouterr()
+    assert stop.value.code == 2
+    assert f"cannot write the output folder {out}" in captured.err
+    assert "give --out a folder you can write to" in captured.err
+    assert "graded student.ipynb" not in captured.out
+
+
+# --- which files are graded ---------------------------------------------------------------------
+
+
+def test_every_notebook_gets_a_row_whatever_the_case_of_its_extension(tmp_path, capsys):
+    """``.IPYNB`` used to be skipped, and the files left aside were not named."""
+    notebooks = {"a.ipynb": b"not json", "a.IPYNB": b"not json either", "B.Ipynb": b"{"}
+    subs = _folder(tmp_path / "subs", {**notebooks, "notes.py": b"x = 1", "report.pdf": b"%PDF"})
+    (subs / "old").mkdir()
+    rows = batch.run_batch(subs, SPEC, tmp_path / "out", jobs=1, unsafe_no_sandbox=True)
+    assert {r["file"] for r in rows} == set(_rows(tmp_path / "out")) == set(notebooks)
+    assert "not graded (not .ipynb files): notes.py, old/, report.pdf" in capsys.readouterr().err
+    # a.ipynb and a.IPYNB share a stem: each keeps a feedback file of its own
+    feedback = {p.name: p.read_text(encoding="utf-8") for p in (tmp_path / "out" / "feedback").iterdir()}
+    assert {name: text.splitlines()[0] for name, text in feedback.items()} == {
+        "B.txt": "Feedback on B.Ipynb (problem1)",
+        "a.txt": "Feedback on a.IPYNB (problem1)",
+        "a-2.txt": "Feedback on a.ipynb (problem1)",
+    }
+    # a folder holding only an upper-case notebook is graded, not refused as holding none
+    upper = _folder(tmp_path / "upper", {"only.IPYNB": b"not json"})
+    batch.main(_argv(upper, tmp_path / "out_upper"))
+    assert set(_rows(tmp_path / "out_upper")) == {"only.IPYNB"}
+
+
+# --- what is written ----------------------------------------------------------------------------
+
+
+def test_a_row_the_grader_failed_on_gets_no_score_never_a_zero(tmp_path, monkeypatch):
+    """Its cells are blank and its feedback says "not recorded", as for "timed out: regrade"."""
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("the model file is missing")
+
+    monkeypatch.setattr(judge, "grade", broken)  # the pool's workers are forked: they inherit it
+    subs = _folder(tmp_path / "subs", {"student.ipynb": BLANK})
+    rows = batch.run_batch(subs, SPEC, tmp_path / "out", jobs=1, seed=1, unsafe_no_sandbox=True)
+    assert rows[0]["status"] == "error"
+    row = _rows(tmp_path / "out")["student.ipynb"]
+    assert row["status"] == "error" and row["total"] == "" and [row[c] for c in CHECKS] == [""] * len(CHECKS)
+    assert row["max"] == "10" and "the grader failed: the model file is missing" in row["reason"]
+    feedback = (tmp_path / "out" / "feedback" / "student.txt").read_text(encoding="utf-8")
+    assert "Score: not recorded / 10   (status: error)" in feedback and "Score: 0" not in feedback
+    assert "- p1_ik (- / 3): not graded: the grader failed: the model file is missing" in feedback
+
+
+def test_canvas_leaves_the_cell_of_a_row_the_grader_failed_on_as_exported(tmp_path):
+    members = {"smithbob_1234_50001_problem1_reaching.ipynb": fake_notebook("error")}
+    result = canvas.grade_canvas(
+        build_zip(tmp_path / "s.zip", members), EXPORT, SPEC, tmp_path / "out", grade=fake_grade([])
+    )
+    assert result.scores == {} and any("error" in m for m in result.not_scored)
+    before, after = canvas.read_gradebook(EXPORT), canvas.read_gradebook(tmp_path / "out" / "gradebook_import.csv")
+    assert after.cell(1234, after.header.index(COLUMN)) == before.cell(1234, before.header.index(COLUMN)) == ""
+    feedback = result.feedback[1234].read_text(encoding="utf-8")
+    assert "Not scored: error" in feedback and "(0 / " not in feedback and "- p1_ik (- / 3)" in feedback
+
+
+def test_clean_text_keeps_a_message_on_one_line_without_control_characters():
+    text = canvas.clean_text(NASTY)
+    assert text == "oops Score: 10 / 10   (status: graded) \\x00\\x1b[2J  \\u202eevil"
+    assert text.isprintable() and text.splitlines() == [text]
+    assert canvas.clean_text("x" * 5000) == "x" * 1999 + "…"
+    assert canvas.clean_text("\x00" * 1000) == "\\x00" * 499 + "\\x0…"
+    assert canvas.clean_text("é ✔ 3 / 10: ik_3r returned NaN") == "é ✔ 3 / 10: ik_3r returned NaN"
+
+
+def _one_score_line(text: str) -> str:
+    """The one line of ``text`` that states a score; fails if a second one was slipped in."""
+    (line,) = [line for line in text.splitlines() if line.lstrip().startswith("Score:")]
+    return line
+
+
+def test_student_text_cannot_forge_lines_or_write_control_characters(tmp_path):
+    """A student's exception message put a fake score line into their feedback, and NUL bytes
+    into grades.csv."""
+    nb = nbformat.v4.new_notebook()
+    nb.cells = [nbformat.v4.new_code_cell(f"print('hi\\x1b[2J')\nraise ValueError({NASTY!r})")]
+    subs = _folder(tmp_path / "subs", {"evil.ipynb": nbformat.writes(nb).encode()})
+    batch.run_batch(subs, SPEC, tmp_path / "out", jobs=1, seed=1, unsafe_no_sandbox=True)
+    raw = (tmp_path / "out" / "grades.csv").read_bytes()
+    feedback = (tmp_path / "out" / "feedback" / "evil.txt").read_text(encoding="utf-8")
+    for text in (raw.decode("utf-8"), feedback):
+        assert "\x00" not in text and "\x1b" not in text and "\r" not in text and "\u2028" not in text
+    assert (
+        raw.count(b"\n") == 2
+        and "oops Score: 10 / 10   (status: graded) \\x00" in _rows(tmp_path / "out")["evil.ipynb"]["reason"]
+    )
+    assert _one_score_line(feedback) == "Score: 0 / 10   (status: graded)"
+
+
+def test_canvas_feedback_and_report_keep_student_text_on_one_line(tmp_path):
+    def grade(folder, spec_path, out):
+        scores, messages = dict.fromkeys(CHECKS, 0.0), dict.fromkeys(CHECKS, NASTY)
+        return [
+            {"file": p.name, "status": "graded", "scores": scores, "messages": messages, "notes": [NASTY]}
+            for p in sorted(folder.glob("*.ipynb"))
+        ]
+
+    members = {
+        "smithbob_1234_50001_problem1_reaching.ipynb": fake_notebook(),
+        "smithbob_1234_50002_x\nScore: 20 / 20.ipynb": fake_notebook(),  # a name Canvas never writes
+    }
+    result = canvas.grade_canvas(build_zip(tmp_path / "s.zip", members), EXPORT, SPEC, tmp_path / "out", grade=grade)
+    feedback = result.feedback[1234].read_text(encoding="utf-8")
+    report = (tmp_path / "out" / "report.txt").read_text(encoding="utf-8")
+    for text in (feedback, report):
+        assert "\x00" not in text and "\x1b" not in text and "\r" not in text and "\u2028" not in text
+    assert _one_score_line(feedback) == "Score: 0 / 20"
+    assert not any(line.startswith("Score:") for line in report.splitlines())
+
+
+def test_the_batch_command_writes_files_only_their_owner_can_read(tmp_path):
+    """They used to be 0644 (readable by every user of the machine), unlike the Canvas tool's."""
+    subs = _folder(tmp_path / "subs", {"student.ipynb": b"not json"})
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "labsupport.instructor.batch", *_argv(subs, out)]
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, umask=0o022)
+    assert proc.returncode == 0, proc.stderr
+    for path in (out, out / "feedback", out / "grades.csv", out / "batch.json", out / "feedback" / "student.txt"):
+        assert stat.S_IMODE(os.stat(path).st_mode) & 0o077 == 0, (path, oct(os.stat(path).st_mode))
+
+
+def test_a_regrade_into_the_same_folder_leaves_no_stale_feedback(tmp_path):
+    """Feedback files of students no longer in the batch used to stay beside the new grades.csv."""
+    out = tmp_path / "out"
+    first = _folder(tmp_path / "first", {"a.ipynb": b"x", "b.ipynb": b"x", "c.ipynb": b"x"})
+    batch.run_batch(first, SPEC, out, jobs=1, unsafe_no_sandbox=True)
+    (out / "feedback" / "my notes.txt").write_text("the instructor's own file", encoding="utf-8")
+    second = _folder(tmp_path / "second", {"a.ipynb": b"x"})
+    batch.run_batch(second, SPEC, out, jobs=1, unsafe_no_sandbox=True)
+    assert set(_rows(out)) == {"a.ipynb"}
+    assert sorted(p.name for p in (out / "feedback").iterdir()) == ["a.txt", "my notes.txt"]
+
+
+# --- the Canvas tool grades what the batch grades -----------------------------------------------
+
+
+def test_canvas_grades_a_notebook_over_64_mib_without_its_outputs(tmp_path):
+    """It used to leave such a notebook ungraded, while the batch grades it (outputs are ignored)."""
+    nb = nbformat.reads(fake_notebook(p1_ik=3).decode(), as_version=4)
+    nb.cells[0].outputs = [nbformat.v4.new_output("stream", text="x" * (70 * 2**20))]
+    nb.cells.append(nbformat.v4.new_markdown_cell("![plot](attachment:p.png)", attachments={"p.png": {"x": "A"}}))
+    nb.cells.append(nbformat.v4.new_code_cell("ik_3r = None", id="second"))
+    data = nbformat.writes(nb).encode()
+    graded = {}
+
+    def grade(folder, spec_path, out):
+        graded.update({p.name: p.read_bytes() for p in folder.glob("*.ipynb")})
+        return fake_grade([])(folder, spec_path, out)
+
+    members = {"smithbob_1234_50001_problem1_reaching.ipynb": data}
+    result = canvas.grade_canvas(build_zip(tmp_path / "s.zip", members), EXPORT, SPEC, tmp_path / "out", grade=grade)
+    assert result.scores == {1234: "6"}, result.not_scored  # 3 of 10 points, scaled to the column's 20
+    (notebook,) = graded.values()
+    assert len(notebook) < 10_000 and b"attachment" in notebook and b'"p.png"' not in notebook
+    assert judge.read_cells(notebook) == judge.read_cells(data)  # the cells the grader runs
+    assert canvas.without_outputs(b"not json") == b"not json"  # left for the grader to explain
