@@ -242,3 +242,15 @@ def test_canvas_grades_a_notebook_over_64_mib_without_its_outputs(tmp_path):
     assert len(notebook) < 10_000 and b"attachment" in notebook and b'"p.png"' not in notebook
     assert judge.read_cells(notebook) == judge.read_cells(data)  # the cells the grader runs
     assert canvas.without_outputs(b"not json") == b"not json"  # left for the grader to explain
+
+
+def test_problem_specs_are_found_from_any_working_folder(tmp_path, capsys, monkeypatch):
+    """``--problem NAME`` finds the repository's specs wherever the command runs (it looked in
+    ``tests/autograder`` under the working folder only)."""
+    (tmp_path / "subs").mkdir()
+    (tmp_path / "subs" / "a.ipynb").write_text("{}", encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as err:
+        batch.main(["subs", "--problem", "problem3", "--out", "out"])
+    assert err.value.code == 2
+    assert "the problems are problem1, problem2" in capsys.readouterr().err

@@ -36,9 +36,10 @@ from pathlib import Path
 import nbformat
 
 MASTERS = Path("notebooks") / "masters"
-#: Where the autograder specs are written, and where ``--problem NAME`` of the batch and Canvas
-#: commands finds them, relative to the repository root.
+#: Where the autograder specs are written, relative to the repository root.
 SPEC_DIR = Path("tests") / "autograder"
+#: Where ``--problem NAME`` of the batch and Canvas commands finds them, from any working folder.
+SPECS = Path(__file__).resolve().parents[2] / SPEC_DIR
 _CHECK_CELL = re.compile(r'^check\("([a-z0-9_]+)", globals\(\)\)\s*$')
 #: Cell metadata copied as is into the student's cell: ``mystnb`` holds the book's per-cell
 #: options, such as a figure's text alternative (``{"mystnb": {"image": {"alt": ...}}}``).

@@ -54,7 +54,7 @@ from pathlib import Path
 
 from labsupport.grading import registry
 from labsupport.instructor import isolation, judge
-from labsupport.instructor.assign import SPEC_DIR
+from labsupport.instructor.assign import SPECS
 from labsupport.instructor.canvas import clean_text, keep_private
 
 #: The note every row carries when the batch ran without a sandbox.
@@ -379,14 +379,14 @@ def main(argv=None) -> None:
         help="grade without bubblewrap: only for submissions you trust (every row says so)",
     )
     args = parser.parse_args(argv)
-    spec = args.spec or SPEC_DIR / f"{args.problem}.json"
+    spec = args.spec or SPECS / f"{args.problem}.json"
     if args.spec and not args.spec.is_file():
         parser.error(f"no autograder spec at {args.spec}")
     if not Path(spec).is_file():
-        known = sorted(p.stem for p in SPEC_DIR.glob("*.json")) if SPEC_DIR.is_dir() else []
+        known = sorted(p.stem for p in SPECS.glob("*.json")) if SPECS.is_dir() else []
         parser.error(
             f"no autograder spec for --problem {args.problem} at {spec}: "
-            + (f"the problems are {', '.join(known)}" if known else "run from the repository root, or give --spec")
+            + (f"the problems are {', '.join(known)}" if known else "give --spec PATH")
         )
     if args.jobs is not None and args.jobs < 1:
         parser.error(f"--jobs must be at least 1, got {args.jobs}")

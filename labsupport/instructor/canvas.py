@@ -92,7 +92,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
-from labsupport.instructor.assign import SPEC_DIR
+from labsupport.instructor.assign import SPECS
 
 #: Largest notebook read from the zip [bytes]: reading one takes that much memory, and no
 #: student's notebook comes near it; a bigger file is reported, not graded.
@@ -817,12 +817,12 @@ def main(argv=None) -> None:
     )
     parser.add_argument("--jobs", type=int, default=None, help="submissions graded at once (default: CPU count)")
     args = parser.parse_args(argv)
-    spec = args.spec or SPEC_DIR / f"{args.problem}.json"
+    spec = args.spec or SPECS / f"{args.problem}.json"
     for path, what in ((spec, "autograder spec"), (args.submissions, "submissions zip"), (args.gradebook, "gradebook")):
         if not Path(path).is_file():
             parser.error(
                 f"no {what} at {path}"
-                + (": run from the repository root, or give --spec" if what == "autograder spec" else "")
+                + (": give --spec PATH" if what == "autograder spec" else "")
             )
     try:
         result = grade_canvas(args.submissions, args.gradebook, spec, args.out, args.column, args.jobs)
