@@ -820,10 +820,7 @@ def main(argv=None) -> None:
     spec = args.spec or SPECS / f"{args.problem}.json"
     for path, what in ((spec, "autograder spec"), (args.submissions, "submissions zip"), (args.gradebook, "gradebook")):
         if not Path(path).is_file():
-            parser.error(
-                f"no {what} at {path}"
-                + (": give --spec PATH" if what == "autograder spec" else "")
-            )
+            parser.error(f"no {what} at {path}" + (": give --spec PATH" if what == "autograder spec" else ""))
     try:
         result = grade_canvas(args.submissions, args.gradebook, spec, args.out, args.column, args.jobs)
     except ValueError as err:
