@@ -152,8 +152,8 @@ def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.nda
         if what == "value":
             raise NotImplementedYet(f"{fname} is None: not implemented yet")
         raise NotImplementedYet(
-            f"{fname} returned None: not implemented yet (or its last line lacks `return`: a function "
-            "that ends without one returns None)"
+            f"{fname} returned None: not implemented yet (a function that ends without a return "
+            "statement returns None too)"
         )
     if validate.is_complex(value):
         raise StudentError(complex_message(fname))
