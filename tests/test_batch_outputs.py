@@ -254,3 +254,23 @@ def test_problem_specs_are_found_from_any_working_folder(tmp_path, capsys, monke
         batch.main(["subs", "--problem", "problem3", "--out", "out"])
     assert err.value.code == 2
     assert "the problems are problem1, problem2" in capsys.readouterr().err
+
+
+def test_the_batch_keeps_a_huge_notebook_in_memory_without_its_outputs(tmp_path, monkeypatch):
+    """Every submission is read before grading and held until its turn: one over
+    ``STRIP_OUTPUTS_BYTES`` is held without the outputs the grader never reads, as Canvas does."""
+    nb = nbformat.reads(BLANK.decode(), as_version=4)
+    code = next(c for c in nb.cells if c.cell_type == "code")
+    code.outputs = [nbformat.v4.new_output("stream", text="x" * 5000)]
+    big = nbformat.writes(nb).encode()
+
+    def sizes(spec, notebook, *args, **kwargs):
+        return {"status": "graded", "scores": {}, "messages": {}, "notes": [f"{len(notebook)} bytes"]}
+
+    monkeypatch.setattr(batch, "STRIP_OUTPUTS_BYTES", 4000)
+    monkeypatch.setattr(judge, "grade", sizes)  # the pool's workers are forked: they inherit both
+    subs = _folder(tmp_path / "subs", {"big.ipynb": big, "small.ipynb": BLANK[:100]})
+    rows = {r["file"]: r for r in batch.run_batch(subs, SPEC, tmp_path / "out", jobs=1, seed=1, unsafe_no_sandbox=True)}
+    held = int(rows["big.ipynb"]["notes"][0].split()[0])
+    assert held < len(big) - 5000 and rows["small.ipynb"]["notes"][0] == "100 bytes"
+    assert judge.read_cells(canvas.without_outputs(big)) == judge.read_cells(big)

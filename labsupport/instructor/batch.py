@@ -55,7 +55,7 @@ from pathlib import Path
 from labsupport.grading import registry
 from labsupport.instructor import isolation, judge
 from labsupport.instructor.assign import SPECS
-from labsupport.instructor.canvas import clean_text, keep_private
+from labsupport.instructor.canvas import STRIP_OUTPUTS_BYTES, clean_text, keep_private, without_outputs
 
 #: The note every row carries when the batch ran without a sandbox.
 UNSAFE_NOTE = "graded WITHOUT a sandbox (--unsafe-no-sandbox): only for submissions you trust"
@@ -174,7 +174,10 @@ def run_batch(
     payloads = []
     for p in files:  # read everything first: nothing a submission does later can lose another one
         try:
-            payloads.append((p.name, p.read_bytes(), None))
+            data = p.read_bytes()
+            if len(data) > STRIP_OUTPUTS_BYTES:  # kept in memory until graded: only what is graded
+                data = without_outputs(data)
+            payloads.append((p.name, data, None))
         except OSError as err:
             payloads.append((p.name, None, f"could not read the file: {err.strerror}"))
     seed = new_seed() if seed is None else int(seed)
