@@ -378,8 +378,14 @@ def test_ik_ct_mistakes_are_named(master2):
     def down_and_a_turn_away(model, data, *ref):
         return ik_ct_law(model, data, *ref, ik=lambda x, elbow_up=True: ik(x, False) - np.array([2 * np.pi, 0, 0]))
 
+    def jdot_at_arm(model, data, *ref):
+        return ik_ct_law(
+            model, data, *ref, ik=ik, jdq_of=lambda J_d, q_d, qd_d: jacobian_at(model, data.qpos, data.qvel)[1]
+        )
+
     for fn, score, words in (
         (no_jdot, 0.5, "J̇(q_d, q̇_d) q̇_d term"),
+        (jdot_at_arm, 0.75, "q̈_d takes J̇q̇ at the arm's state"),
         (at_current_state, 0.75, "at the arm's state"),
         (elbow_down, 0.0, "elbow-down branch"),
         (a_turn_away, 0.25, "elbow-up pose with an angle a full turn (2π) away"),

@@ -258,6 +258,13 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
             "once the arm is on the reference, so it still tracks.",
             0.75,
         ),
+        "jdot_at_arm": Mistake(
+            law(np.linalg.solve(Td.J, xdd_d - T.jdq)),
+            "q̈_d takes J̇q̇ at the arm's state, J̇(q, q̇) q̇; the reference needs it at (q_d, q̇_d): "
+            "J̇(q_d, q̇_d) q̇_d, from the same scratch MjData as J(q_d). The two agree once the arm is "
+            "on the reference, so it still tracks.",
+            0.75,
+        ),
         "elbow_down": Mistake(
             law(qdd_down, qd=qd_down, qq=q_down),
             "the IK returns the elbow-down branch, but the arm runs elbow up (elbow_up=True).",
