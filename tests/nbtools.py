@@ -17,18 +17,28 @@ ROOT = Path(__file__).resolve().parents[1]
 INSTALL_CELL_TAGS = ["hide-input", "remove-output"]
 
 
+def _repository() -> dict:
+    """The ``repository`` section of ``_config.yml``, where the URL and branch are set once."""
+    return yaml.safe_load((ROOT / "_config.yml").read_text(encoding="utf-8"))["repository"]
+
+
 def repository_url() -> str:
     """The repository URL, set once in ``_config.yml``."""
-    config = yaml.safe_load((ROOT / "_config.yml").read_text(encoding="utf-8"))
-    return config["repository"]["url"].rstrip("/")
+    return _repository()["url"].rstrip("/")
 
 
-def archive_url(url: str, branch: str = "main") -> str:
-    """GitHub's zip of the tip of ``branch``: pip builds a package from it without ``git``."""
-    return f"{url}/archive/refs/heads/{branch}.zip"
+def repository_branch() -> str:
+    """The branch the notebooks install from, set once in ``_config.yml`` (``main`` if unset)."""
+    return _repository().get("branch", "main")
 
 
-def install_cell_source(url: str | None = None, branch: str = "main") -> str:
+def archive_url(url: str, branch: str | None = None) -> str:
+    """GitHub's zip of the tip of ``branch`` (the configured one by default): pip builds a
+    package from it without ``git``."""
+    return f"{url}/archive/refs/heads/{branch or repository_branch()}.zip"
+
+
+def install_cell_source(url: str | None = None, branch: str | None = None) -> str:
     """The exact source of every notebook's first cell."""
     url = url or repository_url()
     return (

@@ -99,7 +99,7 @@ def test_every_notebook_runs_in_a_fresh_venv(tmp_path):
     cell = nbtools.install_cell_source()
     assert '"-m", "pip", "install", "-q",' in cell
     assert f'"labsupport @ {nbtools.archive_url(nbtools.repository_url())}"' in cell
-    top = f"{nbtools.repository_url().rsplit('/', 1)[-1]}-main"
+    top = f"{nbtools.repository_url().rsplit('/', 1)[-1]}-{nbtools.repository_branch()}"
     archive = tmp_path / f"{top}.zip"
     _run(["git", "-C", str(ROOT), "archive", "--format=zip", f"--prefix={top}/", "-o", str(archive), "HEAD"])
     without_git = dict(env, PATH=str(venv / "bin"))

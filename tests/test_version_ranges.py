@@ -50,6 +50,20 @@ def test_weekly_workflow_runs_the_test_command_on_newest_versions_and_checks_lin
     triggers = workflow[True]  # YAML 1.1 reads the key `on` as True
     assert triggers["schedule"][0]["cron"].split()[-1] == "1"  # weekly, on Mondays
     steps = {job: " ".join(str(s.get("run", "")) for s in spec["steps"]) for job, spec in workflow["jobs"].items()}
-    assert "newest-requirements.py" in steps["newest"] and "bash .ci/test" in steps["newest"]
+    assert "newest-requirements.py" in steps["newest"] and "REQUIREMENTS=newest.txt bash .ci/test" in steps["newest"]
+    assert "requirements.txt" not in steps["newest"]  # the tests read its pins: it stays as committed
+    assert workflow["jobs"]["newest"]["container"]["options"] == "--privileged"  # bubblewrap's namespaces
     assert "--builder linkcheck" in steps["links"]
     assert "gh issue create" in steps["report"] and workflow["jobs"]["report"]["if"].startswith("failure()")
+
+
+def test_every_push_runs_the_readme_test_command():
+    """CI's entry point on every push and pull request, in a container where bubblewrap can run."""
+    workflow = yaml.safe_load((ROOT / ".github" / "workflows" / "tests.yml").read_text(encoding="utf-8"))
+    assert {"push", "pull_request"} <= set(workflow[True])
+    (job,) = workflow["jobs"].values()
+    assert [s["run"] for s in job["steps"] if s.get("run", "").startswith("bash")] == ["bash .ci/run"]
+    assert job["container"]["options"] == "--privileged"
+    run = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert "bash .ci/test" in run and "bash .ci/test " in readme
