@@ -274,3 +274,20 @@ def test_the_batch_keeps_a_huge_notebook_in_memory_without_its_outputs(tmp_path,
     held = int(rows["big.ipynb"]["notes"][0].split()[0])
     assert held < len(big) - 5000 and rows["small.ipynb"]["notes"][0] == "100 bytes"
     assert judge.read_cells(canvas.without_outputs(big)) == judge.read_cells(big)
+
+
+def test_canvas_grades_can_be_reproduced_with_their_seed(tmp_path, capsys, monkeypatch):
+    """The Canvas command takes --seed, as the batch does, and hands it to the batch grader."""
+    with pytest.raises(SystemExit) as stop:
+        canvas.main(["s.zip", "--problem", "problem1", "--gradebook", "g.csv", "--out", "o", "--seed", "-3"])
+    assert stop.value.code == 2 and "argument --seed: give a whole number" in capsys.readouterr().err
+    seeds = []
+
+    def run_batch(folder, spec_path, out, jobs=None, seed=None):
+        seeds.append(seed)
+        return fake_grade([])(folder, spec_path, out)
+
+    monkeypatch.setattr(batch, "run_batch", run_batch)
+    members = {"smithbob_1234_50001_problem1_reaching.ipynb": fake_notebook(p1_ik=3)}
+    canvas.grade_canvas(build_zip(tmp_path / "s.zip", members), EXPORT, SPEC, tmp_path / "out", seed=123)
+    assert seeds == [123]

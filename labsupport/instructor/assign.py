@@ -1,6 +1,6 @@
 """Generate the student notebooks and the autograder specs from the Problems' master notebooks.
 
-Usage (from the repository root)::
+Usage::
 
     .venv/bin/python -m labsupport.instructor.assign            # write notebooks/*.ipynb and tests/autograder/*.json
     .venv/bin/python -m labsupport.instructor.assign --check    # exit 1 if what is committed differs
@@ -155,8 +155,13 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description="Generate student notebooks and autograder specs from the masters.")
     parser.add_argument("--check", action="store_true", help="only compare with what is on disk; exit 1 on drift")
     args = parser.parse_args(argv)
+    root = Path(__file__).resolve().parents[2]  # the checkout, whatever the working folder
+    try:
+        files = outputs(root)
+    except MasterError as err:
+        parser.error(str(err))
     drift = []
-    for path, text in outputs().items():
+    for path, text in files.items():
         current = path.read_text(encoding="utf-8") if path.exists() else None
         if current == text:
             continue
@@ -165,7 +170,7 @@ def main(argv=None) -> int:
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_text(text, encoding="utf-8")
     verb = "differ from the masters" if args.check else "written"
-    print("\n".join(f"{p}: {verb}" for p in drift) or "everything is up to date")
+    print("\n".join(f"{p.relative_to(root)}: {verb}" for p in drift) or "everything is up to date")
     return 1 if (args.check and drift) else 0
 
 

@@ -55,7 +55,7 @@ from pathlib import Path
 from labsupport.grading import registry
 from labsupport.instructor import isolation, judge
 from labsupport.instructor.assign import SPECS
-from labsupport.instructor.canvas import STRIP_OUTPUTS_BYTES, clean_text, keep_private, without_outputs
+from labsupport.instructor.canvas import STRIP_OUTPUTS_BYTES, clean_text, keep_private, seed_argument, without_outputs
 
 #: The note every row carries when the batch ran without a sandbox.
 UNSAFE_NOTE = "graded WITHOUT a sandbox (--unsafe-no-sandbox): only for submissions you trust"
@@ -346,13 +346,6 @@ def _check_submissions_folder(parser: argparse.ArgumentParser, folder: Path) -> 
             f"no .ipynb file in {folder}"
             + (f"; its subfolders hold {nested}: give the folder that holds them" if nested else "")
         )
-
-
-def seed_argument(text: str) -> int:
-    """``--seed``'s value: a whole number, 0 or more (the test states' generator takes no other)."""
-    if not (text.isascii() and text.isdigit()):
-        raise argparse.ArgumentTypeError(f"give a whole number, 0 or more (as batch.json records it), not {text!r}")
-    return int(text)
 
 
 def main(argv=None) -> None:

@@ -162,6 +162,13 @@ def _visible(c: str) -> str:
     return c
 
 
+def seed_argument(text: str) -> int:
+    """``--seed``'s value: a whole number, 0 or more (the test states' generator takes no other)."""
+    if not (text.isascii() and text.isdigit()):
+        raise argparse.ArgumentTypeError(f"give a whole number, 0 or more (as batch.json records it), not {text!r}")
+    return int(text)
+
+
 def keep_private() -> None:
     """Make the files and folders this process creates from now on its owner's alone (umask 077):
     the outputs hold students' grades."""
@@ -551,12 +558,14 @@ def grade_canvas(
     column: str | None = None,
     jobs: int | None = None,
     grade: GradeFn | None = None,
+    seed: int | None = None,
 ) -> CanvasResult:
     """Grade a Canvas zip into a copy of a Canvas gradebook export; writes OUT as the module says.
 
     ``grade(folder, spec_path, out)`` grades a folder of notebooks and returns the batch rows
     (``file``, ``status``, ``scores``, ``messages``, ``notes``); by default it is
-    :func:`labsupport.instructor.batch.run_batch` with ``jobs``.
+    :func:`labsupport.instructor.batch.run_batch` with ``jobs`` and ``seed`` (a fresh secret
+    one if None; ``OUT/batch/batch.json`` records it, so ``--seed`` reproduces every grade).
     """
     spec_path, out = Path(spec_path), Path(out)
     spec = json.loads(spec_path.read_text(encoding="utf-8"))
@@ -577,7 +586,7 @@ def grade_canvas(
         )
     chosen = _select_submissions(Path(submissions_zip), gradebook, spec, result)
     out.mkdir(parents=True, exist_ok=True)
-    rows = _grade(Path(submissions_zip), chosen, spec_path, out, result, grade or _run_batch(jobs))
+    rows = _grade(Path(submissions_zip), chosen, spec_path, out, result, grade or _run_batch(jobs, seed))
     _record_scores(gradebook, col, spec, chosen, rows, out, result)
     (out / "gradebook_import.csv").write_bytes(fill_column(gradebook, col, result.scores).encode("utf-8"))
     _write_feedback_zip(out, result)
@@ -585,13 +594,13 @@ def grade_canvas(
     return result
 
 
-def _run_batch(jobs: int | None) -> GradeFn:
+def _run_batch(jobs: int | None, seed: int | None = None) -> GradeFn:
     def grade(folder: Path, spec_path: Path, out: Path) -> list[dict]:
         # Imported here: the batch grader is heavy and this module's reading and writing of Canvas
         # files must work (and be tested) without it.
         from labsupport.instructor.batch import run_batch
 
-        return run_batch(folder, spec_path, out, jobs=jobs)
+        return run_batch(folder, spec_path, out, jobs=jobs, seed=seed)
 
     return grade
 
@@ -816,13 +825,19 @@ def main(argv=None) -> None:
         "--out", type=Path, required=True, help="folder for gradebook_import.csv, feedback/, report.txt"
     )
     parser.add_argument("--jobs", type=int, default=None, help="submissions graded at once (default: CPU count)")
+    parser.add_argument(
+        "--seed",
+        type=seed_argument,
+        default=None,
+        help="seed of the test states (default: a fresh secret one; OUT/batch/batch.json records it)",
+    )
     args = parser.parse_args(argv)
     spec = args.spec or SPECS / f"{args.problem}.json"
     for path, what in ((spec, "autograder spec"), (args.submissions, "submissions zip"), (args.gradebook, "gradebook")):
         if not Path(path).is_file():
             parser.error(f"no {what} at {path}" + (": give --spec PATH" if what == "autograder spec" else ""))
     try:
-        result = grade_canvas(args.submissions, args.gradebook, spec, args.out, args.column, args.jobs)
+        result = grade_canvas(args.submissions, args.gradebook, spec, args.out, args.column, args.jobs, seed=args.seed)
     except ValueError as err:
         parser.error(str(err))
     print(
