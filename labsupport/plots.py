@@ -63,6 +63,24 @@ REFERENCE_WIDTH = 5.0
 _RUN_MARKERS = ("", "o", "s", "^")
 
 
+def _styled(runs: Mapping[str, object]) -> list[tuple[str, object, str, str]]:
+    """``(label, run, line style, colour)`` of each run: its colour is ``C0``, ``C1``, ... by its
+    place, so a run keeps its colour in every panel, whatever else a panel draws first (a
+    reference band or the workspace's circles would otherwise shift Matplotlib's colour cycle)."""
+    return [
+        (label, run, style, f"C{i}")
+        for i, ((label, run), style) in enumerate(zip(runs.items(), itertools.cycle(_LINE_STYLES)))
+    ]
+
+
+def _points(ax, x, y, fmt: str, **kwargs) -> None:
+    """Markers at every point of ``(x, y)``: the course style's cycle gives some lines a
+    ``markevery``, which would leave a single point undrawn (and ``markevery=None`` given to
+    ``plot`` does not override a cycle's value)."""
+    (line,) = ax.plot(x, y, fmt, **kwargs)
+    line.set_markevery(None)
+
+
 def single_joint_panel(
     ax,
     runs: Mapping[str, object],
@@ -93,8 +111,8 @@ def single_joint_panel(
     if reference is not None and quantity == "angle":
         desired = np.degrees(reference(first.t).pos)
         ax.plot(first.t, desired, color="0.6", lw=REFERENCE_WIDTH, alpha=0.6, label="desired")
-    for (label, log), style in zip(runs.items(), itertools.cycle(_LINE_STYLES)):
-        ax.plot(log.t, read(log, reference), style, label=label)
+    for label, log, style, color in _styled(runs):
+        ax.plot(log.t, read(log, reference), style, color=color, label=label)
     if level is not None:
         text, value = level
         ax.axhline(np.degrees(value) if quantity in ("angle", "rate") else value, color="gray", ls=":", label=text)
@@ -151,9 +169,9 @@ def closed_form_figure(panels: Mapping[str, Mapping[str, tuple]], ylabel: str):
     panel maps a label to ``(t, closed_form, simulated)``; the panels share the y axis."""
     fig, axes = _figure((10, 3.6), 1, len(panels), sharey=True)
     for ax, (title, curves) in zip(axes[0], panels.items(), strict=True):
-        for (label, (t, closed_form, simulated)), style in zip(curves.items(), itertools.cycle(_LINE_STYLES)):
-            (line,) = ax.plot(t, closed_form, style, label=label)
-            ax.plot(t, simulated, "o", ms=3, color=line.get_color())
+        for label, (t, closed_form, simulated), style, color in _styled(curves):
+            ax.plot(t, closed_form, style, color=color, label=label)
+            _points(ax, t, simulated, "o", ms=3, color=color)
         ax.set(title=title, xlabel="time [s]")
         ax.grid(True, alpha=0.4)
         ax.legend(fontsize=8)
@@ -176,26 +194,27 @@ def reaching_figure(runs: Mapping[str, object], q_d, target, reach: tuple[float,
     target = np.asarray(target, dtype=float)
     for j in range(2):
         ax = axes[0, j]
-        for (label, log), style in zip(runs.items(), itertools.cycle(_LINE_STYLES)):
-            ax.plot(log.t, np.degrees(log.q[:, j] - q_d[j]), style, lw=1.4, label=label)
+        for label, log, style, color in _styled(runs):
+            ax.plot(log.t, np.degrees(log.q[:, j] - q_d[j]), style, color=color, lw=1.4, label=label)
         ax.axhline(0.0, color="k", lw=0.8, ls="--")
         ax.set(xlabel="time [s]", ylabel=f"$q_{j + 1} - q_{{d,{j + 1}}}$ [deg]", title=f"joint {j + 1} error")
         ax = axes[1, j]
-        for (label, log), style in zip(runs.items(), itertools.cycle(_LINE_STYLES)):
-            ax.plot(log.t, log.tau[:, j], style, lw=1.4, label=label)
+        for label, log, style, color in _styled(runs):
+            ax.plot(log.t, log.tau[:, j], style, color=color, lw=1.4, label=label)
         ax.set(xlabel="time [s]", ylabel=rf"$\tau_{j + 1}$ [N·m]", title=f"joint {j + 1} torque")
     ax = axes[0, 2]
     _workspace(ax, *reach)
     first = next(iter(runs.values()))
-    for (label, log), style in zip(runs.items(), itertools.cycle(_LINE_STYLES)):
-        ax.plot(log.ee[:, 0], log.ee[:, 1], style, lw=1.4, label=label)
-    ax.plot(*first.ee[0, :2], "go", ms=7, label="start")
-    ax.plot(*target, "r*", ms=12, label="target")
+    for label, log, style, color in _styled(runs):
+        ax.plot(log.ee[:, 0], log.ee[:, 1], style, color=color, lw=1.4, label=label)
+    _points(ax, *first.ee[0, :2], "go", ms=7, label="start")
+    _points(ax, *target, "r*", ms=12, label="target")
     ax.set_aspect("equal")
     ax.set(xlabel="x [m]", ylabel="y [m]", title="end-effector path")
     ax = axes[1, 2]
-    for (label, log), style in zip(runs.items(), itertools.cycle(_LINE_STYLES)):
-        ax.semilogy(log.t, 1000 * np.linalg.norm(log.ee[:, :2] - target, axis=1), style, lw=1.4, label=label)
+    for label, log, style, color in _styled(runs):
+        distance = 1000 * np.linalg.norm(log.ee[:, :2] - target, axis=1)
+        ax.semilogy(log.t, distance, style, color=color, lw=1.4, label=label)
     ax.set(xlabel="time [s]", ylabel="distance [mm]", title="distance to the target")
     for ax in axes.flat:
         ax.grid(True, alpha=0.4)
@@ -211,13 +230,13 @@ def circle_tracking_figure(runs: Mapping[str, object], desired_path):
     fig, axes = _figure((12, 3.8), 1, 3)
     ax = axes[0, 0]
     ax.plot(desired_path[:, 0], desired_path[:, 1], color="0.6", lw=REFERENCE_WIDTH, alpha=0.6, label="desired")
-    for (label, log), style in zip(runs.items(), itertools.cycle(_LINE_STYLES)):
-        ax.plot(log.ee[:, 0], log.ee[:, 1], style, lw=1.2, alpha=0.8, label=label)
+    for label, log, style, color in _styled(runs):
+        ax.plot(log.ee[:, 0], log.ee[:, 1], style, color=color, lw=1.2, alpha=0.8, label=label)
     ax.set_aspect("equal")
     ax.set(xlabel="x [m]", ylabel="y [m]", title="end-effector path")
     ax = axes[0, 1]
-    for (label, log), style in zip(runs.items(), itertools.cycle(_LINE_STYLES)):
-        ax.plot(log.t, 1000 * np.linalg.norm(log.err, axis=1), style, lw=1.2, label=label)
+    for label, log, style, color in _styled(runs):
+        ax.plot(log.t, 1000 * np.linalg.norm(log.err, axis=1), style, color=color, lw=1.2, label=label)
     ax.set(xlabel="time [s]", ylabel=r"$|x_d - x|$ [mm]", title="Cartesian error")
     ax = axes[0, 2]
     for (i, (label, log)), marker in zip(enumerate(runs.items()), itertools.cycle(_RUN_MARKERS)):
@@ -309,12 +328,14 @@ def planar_arm_frames(
         if "path" in panel:
             ax.plot(panel["path"][:, 0], panel["path"][:, 1], "k--", lw=0.8, alpha=0.5)
         if "target" in panel:
-            ax.plot(*panel["target"], "r*", ms=10)
+            _points(ax, *panel["target"], "r*", ms=10)
         q = np.asarray(panel["q"], dtype=float)
         ee, elbow = forward_kinematics(q, arm), elbow_position(q, arm)
         (trail,) = ax.plot([], [], "-", color=color, lw=1, alpha=0.6)
         (links,) = ax.plot([], [], "o-", color=color, lw=3, ms=4)
         (ref,) = ax.plot([], [], "r*", ms=8)
+        for line in (links, ref):  # every joint, and the one moving target point, drawn
+            line.set_markevery(None)
         clock = ax.text(0.03, 0.04, "", transform=ax.transAxes, fontsize=8)
         artists.append((ee, elbow, panel.get("ref"), trail, links, ref, clock))
 

@@ -81,3 +81,38 @@ def test_the_course_cycle_gives_six_distinct_curves(shown):
             ax.plot([0, 1], [k, k + 1], label=f"curve {k}")
         with pytest.raises(ValueError, match="'curve 0' and 'curve 6'"):
             book.show_figure(fig, ALT)
+
+
+def _log(t, offset, joints):
+    """A run of ``joints`` joints all at the lab's sinusoid plus ``offset``, with a tip on the unit circle."""
+    from labsupport import sim
+    from labsupport.trajectories import sinusoid
+
+    q = np.tile((sinusoid(t).pos + offset)[:, None], (1, joints))
+    ee = np.c_[np.cos(q[:, 0]), np.sin(q[:, 0]), np.zeros_like(t)]
+    none = np.empty((len(t), 0))
+    return sim.Log(t, q, q, q, q, ee, np.zeros((len(t), 3, 3)), none, none)
+
+
+def test_a_run_keeps_its_colour_in_every_panel_and_single_points_are_drawn():
+    """Under the course's style, a reference band (or the workspace's circles) drawn first
+    shifted the colour cycle in one panel only, so a run changed colour between panels; and the
+    cycle's markevery left the reaching figure's start dot and target star undrawn."""
+    from labsupport.trajectories import sinusoid
+
+    t = np.linspace(0.0, 1.0, 11)
+    plots.course_style()
+    try:
+        runs = {"FB": _log(t, 0.1, 1), "FF+FB": _log(t, 0.01, 1)}
+        fig = plots.single_joint_figure(runs, ["angle", "error"], reference=sinusoid)
+        colours = [{line.get_label(): line.get_color() for line in ax.lines} for ax in fig.axes]
+        assert colours[0]["FB"] == colours[1]["FB"] == "C0" and colours[0]["FF+FB"] == colours[1]["FF+FB"] == "C1"
+        plt.close(fig)
+        runs = {"PD": _log(t, 0.1, 2), "CT": _log(t, 0.01, 2)}
+        fig = plots.reaching_figure(runs, [0.0, 0.0], [0.5, 0.5], (0.1, 1.0))
+        path = {line.get_label(): line for line in fig.axes[2].lines}
+        assert path["start"].get_markevery() is None and path["target"].get_markevery() is None
+        assert path["PD"].get_color() == "C0" and path["CT"].get_color() == "C1"
+        plt.close(fig)
+    finally:
+        plt.rcdefaults()
