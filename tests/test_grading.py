@@ -283,6 +283,7 @@ def _busy_loops(n: int) -> list[subprocess.Popen]:
 
 def test_same_scores_idle_and_under_full_load(tmp_path):
     names = ["master.ipynb", "hangs_cell.ipynb", "hangs_in_call.ipynb", "hangs_forever.ipynb"]
+    names += ["sleeps_between_cells.ipynb", "sleeps_in_calls.ipynb"]  # idle time counts alike
     subs = _submissions(tmp_path / "subs", names)
     spec = ROOT / "tests" / "autograder" / "problem1.json"
     idle = run_batch(subs, spec, tmp_path / "idle", jobs=2, seed=SEED, budget=BUDGET)
