@@ -10,6 +10,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -164,14 +165,33 @@ def _grades(out: Path) -> dict:
         return {r["file"]: r for r in csv.DictReader(f)}
 
 
-def _sandbox_processes() -> list[str]:
+def _cmdline_and_parent(pid: str) -> tuple[bytes, str]:
+    """A process's command line and its parent's pid ("0" once past the first process)."""
+    try:
+        cmdline = Path(f"/proc/{pid}/cmdline").read_bytes()
+        parent = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1]
+    except (OSError, IndexError):
+        return b"", "0"
+    return cmdline, parent
+
+
+def _sandbox_processes(marker: str) -> list[str]:
+    """Sandbox servers still running that belong to this test's batches: ``marker`` (the folder
+    the batches made their sandboxes' layout in) is on their command line or on an ancestor's
+    (bubblewrap's). Sandboxes of other batches running on the machine at the same time are not
+    this test's business."""
     found = []
     for entry in Path("/proc").glob("[0-9]*/cmdline"):
-        try:
-            if isolation.SERVER.encode() in entry.read_bytes():
-                found.append(entry.parent.name)
-        except OSError:
+        pid = entry.parent.name
+        cmdline, parent = _cmdline_and_parent(pid)
+        if isolation.SERVER.encode() not in cmdline:
             continue
+        chain = [cmdline]
+        while parent not in ("0", "1") and len(chain) < 16:
+            cmdline, parent = _cmdline_and_parent(parent)
+            chain.append(cmdline)
+        if any(marker.encode() in c for c in chain):
+            found.append(pid)
     return found
 
 
@@ -183,6 +203,17 @@ def batch(tmp_path_factory):
     everything = _submissions(tmp / "all", EXPECTED)
     subs_before = _tree_hash(everything)
     checkout_before = _checkout_hash()
+    layouts = tmp / "layouts"  # where the batches build their sandboxes (on every sandbox's command line)
+    layouts.mkdir()
+    tempfile.tempdir, system_tmp = str(layouts), tempfile.tempdir
+    try:
+        return _hostile_batches(tmp, base, everything, subs_before, checkout_before)
+    finally:
+        tempfile.tempdir = system_tmp
+
+
+def _hostile_batches(tmp: Path, base: Path, everything: Path, subs_before: str, checkout_before: str) -> dict:
+    """The three batches of the ``batch`` fixture, and what the tests compare."""
     run_batch(base, ROOT / "tests" / "autograder" / "problem1.json", tmp / "out0", jobs=2, seed=SEED, budget=BUDGET)
     start = time.monotonic()
     rows = run_batch(
@@ -194,6 +225,7 @@ def batch(tmp_path_factory):
     run_batch(base, ROOT / "tests" / "autograder" / "problem1.json", tmp / "out2", jobs=2, seed=SEED, budget=BUDGET)
     return {
         "tmp": tmp,
+        "layouts": tmp / "layouts",
         "rows": {r["file"]: r for r in rows},
         "grades": _grades(tmp / "out1"),
         "elapsed": elapsed,
@@ -245,7 +277,7 @@ def test_the_next_batch_is_unchanged(batch):
 
 
 def test_nothing_outlives_the_batch_or_changes_outside_it(batch):
-    assert _sandbox_processes() == []
+    assert _sandbox_processes(str(batch["layouts"])) == []
     assert _tree_hash(batch["tmp"] / "out1") == batch["out_right_after"]
     assert _tree_hash(batch["subs"]) == batch["subs_before"]
     assert _checkout_hash() == batch["checkout_before"]
