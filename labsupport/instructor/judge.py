@@ -442,12 +442,13 @@ def read_cells(text: bytes) -> list[tuple[int, str]]:
         raise ValueError("not a valid notebook: its JSON is nested too deeply") from None
     if isinstance(nb, dict) and nb.get("nbformat") == 3 and isinstance(nb.get("worksheets"), list):
         sheets = [w.get("cells") for w in nb["worksheets"] if isinstance(w, dict)]
-        nb = {"cells": [c for cells in sheets if isinstance(cells, list) for c in cells], "source_key": "input"}
-    if not isinstance(nb, dict) or not isinstance(nb.get("cells"), list):
+        every, source_key = [c for cells in sheets if isinstance(cells, list) for c in cells], "input"
+    elif isinstance(nb, dict) and isinstance(nb.get("cells"), list):
+        every, source_key = nb["cells"], "source"
+    else:
         raise ValueError("not a valid notebook: no list of cells")
-    source_key = nb.get("source_key", "source")
     cells = []
-    for k, cell in enumerate(nb["cells"]):
+    for k, cell in enumerate(every):
         if not isinstance(cell, dict) or cell.get("cell_type") != "code":
             continue
         src = cell.get(source_key, "")
