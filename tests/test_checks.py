@@ -85,18 +85,21 @@ def tip_at(model, q):
 
 
 def newton_ik(x, elbow_up=True):
-    """Numerical IK: Newton's method on MuJoCo's forward kinematics, restarted until it lands on the
-    asked branch (elbow up: theta = q3 + pi/2 in (0, pi), i.e. cos q3 > 0)."""
+    """Numerical IK: Newton's method on MuJoCo's forward kinematics, its steps capped at 0.3 rad
+    (full steps wander off by many turns from a poor start, and where they land then depends on
+    the last bit of the arithmetic), restarted until it lands on the asked branch (elbow up:
+    theta = q3 + pi/2 in (0, pi), i.e. cos q3 > 0)."""
     model = common.arm_model()
     x = np.asarray(x, float)
     for q3 in (0.5, -0.5, 1.2, -1.2, 0.0):
         q = np.array([np.arctan2(x[1], x[0]), 0.3, q3 if elbow_up else -np.pi - q3])
-        for _ in range(50):
+        for _ in range(200):
             err = x - tip_at(model, q)
             if np.linalg.norm(err) < 1e-12:
                 break
             J, _ = jacobian_at(model, q)
-            q = q + np.linalg.lstsq(J, err, rcond=None)[0]
+            step = np.linalg.lstsq(J, err, rcond=None)[0]
+            q = q + step * min(1.0, 0.3 / np.linalg.norm(step))
         if np.linalg.norm(x - tip_at(model, q)) < 1e-9 and (np.cos(q[2]) > 0) == elbow_up:
             return q
     raise ValueError(f"no solution for {x}")
