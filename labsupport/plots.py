@@ -11,12 +11,15 @@ from __future__ import annotations
 import itertools
 from collections.abc import Mapping, Sequence
 
+import matplotlib.pyplot as plt
 import numpy as np
 from cycler import cycler
 from matplotlib import rcParamsDefault
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from labsupport import validate
+from labsupport.kinematics.planar_2r import elbow_position, forward_kinematics
 from labsupport.metrics import cumulative_effort
 
 #: Successive curves of a panel differ in line style or marker as well as in colour (WCAG 2.1,
@@ -34,15 +37,11 @@ CURVE_CYCLE = (
 def course_style(rc: Mapping | None = None) -> None:
     """Set Matplotlib's defaults for the course's figures: :data:`CURVE_CYCLE`, then ``rc``
     (more ``rcParams``, e.g. ``{"figure.dpi": 90}``)."""
-    import matplotlib.pyplot as plt
-
     plt.rcParams.update({"axes.prop_cycle": CURVE_CYCLE, **(rc or {})})
 
 
 def _figure(figsize, nrows=1, ncols=1, **kwargs):
     """A pyplot figure with a 2-D array of axes."""
-    import matplotlib.pyplot as plt
-
     return plt.subplots(nrows, ncols, figsize=figsize, squeeze=False, layout="constrained", **kwargs)
 
 
@@ -298,10 +297,6 @@ def planar_arm_frames(
     Returns:
         ``(F, height, width, 3)`` uint8 array, for :func:`mediapy.show_video`.
     """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-    from labsupport.kinematics.planar_2r import elbow_position, forward_kinematics
-
     width, height = size
     if width % 2 or height % 2:
         raise ValueError(f"size must be even in both directions for H.264, got {size}")

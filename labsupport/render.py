@@ -21,7 +21,7 @@ import mediapy
 import mujoco
 import numpy as np
 
-from labsupport import validate
+from labsupport import gl, validate
 from labsupport.book import text_alternative
 from labsupport.sim import Log, site_positions
 
@@ -53,8 +53,6 @@ def make_renderer(model: mujoco.MjModel, width: int = 320, height: int = 240) ->
     Raises:
         ValueError: if the size exceeds the model's offscreen buffer (``<global offwidth>``).
     """
-    from labsupport import gl
-
     width, height = int(width), int(height)
     if width <= 0 or height <= 0:
         raise ValueError(f"width and height must be positive pixels, got {width}x{height}")

@@ -27,7 +27,9 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Mapping
 
-from labsupport.grading.feedback import NotImplementedYet, Result, StudentError, as_vector
+from labsupport.grading.feedback import DirectProbe, NotImplementedYet, Result, StudentError, as_vector
+from labsupport.grading.stability import Trace, explain_divergence
+from labsupport.sim import SimulationDiverged
 
 #: Set in the batch grader's sandbox: in-notebook checks then stay quiet (the grader runs its own).
 BATCH_ENV = "LABSUPPORT_GRADING_BATCH"
@@ -36,7 +38,12 @@ PUBLIC_SEED = 2024
 
 
 def registry() -> dict[str, Callable]:
-    """Every check, by name: ``check_fn(probe, seed) -> Result``."""
+    """Every check, by name: ``check_fn(probe, seed) -> Result``.
+
+    The check modules are imported here, on first use, not at the top: in the batch grader's
+    sandbox they are replaced by stubs (:data:`labsupport.grading.rules.FORBIDDEN`), and a
+    student's ``from labsupport.grading import check`` must still import.
+    """
     from labsupport.grading import problem1, problem2
 
     return {**problem1.CHECKS, **problem2.CHECKS}
@@ -55,8 +62,6 @@ def check(name: str, namespace: dict) -> Result | None:
     checks = registry()
     if name not in checks:
         raise ValueError(f"no check named {name!r}; the checks are {sorted(checks)}")
-    from labsupport.grading.feedback import DirectProbe
-
     result = checks[name](DirectProbe(namespace), PUBLIC_SEED)
     print(result)
     return result
@@ -68,8 +73,6 @@ class StudentController:
     a bad torque. ``args`` may also be a single function of the time returning the tuple."""
 
     def __init__(self, fn: Callable, *args):
-        from labsupport.grading.stability import Trace
-
         self.fn, self.args = fn, args
         self.name = getattr(fn, "__name__", "the controller")
         self.moving = len(args) == 1 and callable(args[0])
@@ -97,8 +100,6 @@ def attempt(label: str, run: Callable, controller: StudentController | None = No
     explained: a damping too stiff for the time step is named as such, with its numbers and the
     remedies.
     """
-    from labsupport.sim import SimulationDiverged
-
     try:
         return run()
     except NotImplementedYet as err:
@@ -108,8 +109,6 @@ def attempt(label: str, run: Callable, controller: StudentController | None = No
     except SimulationDiverged as err:
         reason = None
         if controller is not None and model is not None:
-            from labsupport.grading.stability import explain_divergence
-
             reason = explain_divergence(model, controller.torque, controller.trace, err.t)
         print(
             f"{label}: the simulation diverged at t = {err.t:.3f} s: "

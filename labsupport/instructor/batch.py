@@ -39,6 +39,7 @@ from __future__ import annotations
 import argparse
 import csv
 import datetime
+import hashlib
 import io
 import json
 import multiprocessing
@@ -52,6 +53,9 @@ from concurrent.futures import ProcessPoolExecutor
 from functools import partial
 from pathlib import Path
 
+import mujoco
+
+import labsupport
 from labsupport.grading import registry
 from labsupport.instructor import isolation, judge
 from labsupport.instructor.assign import SPECS
@@ -229,20 +233,14 @@ def run_batch(
 
 
 def _sha256(path: Path) -> str:
-    import hashlib
-
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def _version() -> str:
-    import labsupport
-
     return labsupport.__version__
 
 
 def _mujoco_version() -> str:
-    import mujoco
-
     return mujoco.__version__
 
 
