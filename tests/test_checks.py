@@ -30,6 +30,7 @@ from labsupport.grading.feedback import (
     show_pair,
 )
 from labsupport.grading.stability import stiff_damping
+from labsupport.kinematics.planar_2r import Planar2R
 from labsupport.kinematics.planar_2r import inverse_kinematics as planar_ik
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -570,6 +571,18 @@ def test_calling_labsupports_kinematics_scores_zero(master1):
 
     result = grade("p1_ik", ik_3r=ik_through_2r)
     assert result.score == 0 and rules.MARKER in result.message and "labsupport.kinematics" in result.message
+
+
+def test_a_borrowed_class_is_named_as_the_student_wrote_it():
+    """A dataclass's __init__ is generated code; the reason names the class, not that code."""
+
+    def ik_with_a_2r_arm(x, elbow_up=True):
+        arm = Planar2R(1.0, 1.0)
+        return np.zeros(3) + 0 * arm.l1
+
+    result = grade("p1_ik", ik_3r=ik_with_a_2r_arm)
+    assert result.score == 0 and "labsupport.kinematics.planar_2r.Planar2R is off limits" in result.message
+    assert "<locals>" not in result.message
 
 
 def test_calling_the_checks_internals_scores_zero():

@@ -99,6 +99,14 @@ EXPECTED = {
     "exits.ipynb": ({}, "graded", ["ended the grading process"]),
     "fake_outputs.ipynb": ({}, "graded", NOTHING),
     "kills_grader.ipynb": (FULL, "graded", []),  # nothing of the grader is within its reach
+    "borrows_task_code.ipynb": (  # TODOs 1 and 3 answered through labsupport: right numbers, zero
+        {"p1_pd": 2},
+        "graded",
+        [
+            "p1_ik: IK: labsupport.kinematics.planar_2r.Planar2R is off limits in a Problem TODO",
+            "p1_ct: CT: labsupport.controllers.joint_space.ct_joint_torque is off limits",
+        ],
+    ),
     # attacks on the grader, from notebooks that implement nothing: any point is a successful attack
     "escapes.ipynb": ({}, "graded", NOTHING),
     "writes_everywhere.ipynb": ({}, "graded", ["wrote files: /home/student/junk.txt"]),

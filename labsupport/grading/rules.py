@@ -81,6 +81,16 @@ def is_forbidden_module(module: str) -> bool:
     return any(module == p or module.startswith(p + ".") for p in FORBIDDEN)
 
 
+def _called_name(frame) -> str:
+    """The name a student wrote for the function running in ``frame``: its qualified name, or
+    for a class's ``__init__`` (a dataclass's is generated code, named
+    ``__create_fn__.<locals>.__init__``) the class itself."""
+    code = frame.f_code
+    if code.co_name in ("__init__", "__post_init__") and "self" in frame.f_locals:
+        return type(frame.f_locals["self"]).__qualname__
+    return getattr(code, "co_qualname", code.co_name)
+
+
 def call_watched(fn: Callable, *args, **kwargs):
     """Call ``fn(*args, **kwargs)``, watching which Python functions it runs.
 
@@ -100,8 +110,7 @@ def call_watched(fn: Callable, *args, **kwargs):
         if event == "call" and not used:
             module = frame.f_globals.get("__name__", "")
             if module.startswith("labsupport.") and is_forbidden_module(module):
-                code = frame.f_code
-                used.append(f"{module}.{getattr(code, 'co_qualname', code.co_name)}")
+                used.append(f"{module}.{_called_name(frame)}")
         if previous is not None:
             previous(frame, event, arg)
 

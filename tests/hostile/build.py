@@ -106,6 +106,18 @@ vandalise()
 """
 )
 
+#: TODO 1 through Task 3's planar 2R solve, in the arm's vertical plane: right angles, off limits.
+BORROWED_IK = """def ik_3r(x, elbow_up=True):
+    from labsupport.kinematics.planar_2r import Planar2R, inverse_kinematics
+    rho, h = np.hypot(x[0], x[1]), x[2] - 1.0
+    q2, theta = inverse_kinematics(np.array([h, rho]), Planar2R(1.0, 1.0), "up" if elbow_up else "down")
+    return np.array([np.arctan2(x[1], x[0]), q2, theta - np.pi / 2])"""
+
+#: TODO 3 through Task 3's generic joint computed torque: the right torque, off limits.
+BORROWED_CT = """def ct_joint_torque(model, data, q_d, Kp, Kd):
+    from labsupport.controllers.joint_space import ct_joint_torque as task3_ct
+    return task3_ct(model, data, q_d, np.zeros(3), np.zeros(3), Kp, Kd)"""
+
 MASTERS_VIA_INTERPRETER = r"""
 import os, sys, json, pathlib
 import labsupport
@@ -312,6 +324,8 @@ def hostile() -> dict[str, object]:
     out["returns_nan.ipynb"] = replace_function(
         m(), "ct_joint_torque", "def ct_joint_torque(model, data, q_d, Kp, Kd):\n    return np.full(3, np.nan)"
     )
+    nb = replace_function(m(), "ik_3r", BORROWED_IK)  # answers through labsupport: zero, with the reason
+    out["borrows_task_code.ipynb"] = replace_function(nb, "ct_joint_torque", BORROWED_CT)
     nb = m()
     imports = nb.cells.pop(_imports(nb))
     nb.cells.insert(_defining(nb, "ik_3r") + 1, imports)
