@@ -580,9 +580,16 @@ def test_a_borrowed_class_is_named_as_the_student_wrote_it():
         arm = Planar2R(1.0, 1.0)
         return np.zeros(3) + 0 * arm.l1
 
-    result = grade("p1_ik", ik_3r=ik_with_a_2r_arm)
-    assert result.score == 0 and "labsupport.kinematics.planar_2r.Planar2R is off limits" in result.message
-    assert "<locals>" not in result.message
+    class MyArm(Planar2R):
+        pass
+
+    def ik_with_a_subclass(x, elbow_up=True):
+        return np.zeros(3) + 0 * MyArm(1.0, 1.0).l1
+
+    for ik in (ik_with_a_2r_arm, ik_with_a_subclass):
+        result = grade("p1_ik", ik_3r=ik)
+        assert result.score == 0 and "labsupport.kinematics.planar_2r.Planar2R is off limits" in result.message
+        assert "<locals>" not in result.message
 
 
 def test_calling_the_checks_internals_scores_zero():

@@ -84,10 +84,14 @@ def is_forbidden_module(module: str) -> bool:
 def _called_name(frame) -> str:
     """The name a student wrote for the function running in ``frame``: its qualified name, or
     for a class's ``__init__`` (a dataclass's is generated code, named
-    ``__create_fn__.<locals>.__init__``) the class itself."""
+    ``__create_fn__.<locals>.__init__``) the class itself, or the module's class that a
+    student's subclass derives from."""
     code = frame.f_code
     if code.co_name in ("__init__", "__post_init__") and "self" in frame.f_locals:
-        return type(frame.f_locals["self"]).__qualname__
+        module = frame.f_globals.get("__name__")
+        for cls in type(frame.f_locals["self"]).__mro__:
+            if cls.__module__ == module:
+                return cls.__qualname__
     return getattr(code, "co_qualname", code.co_name)
 
 
