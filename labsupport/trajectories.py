@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
@@ -130,7 +131,8 @@ class SampledReference:
 
     A controller that runs every :math:`\Delta t` reads row :math:`k` of three arrays instead
     of evaluating the reference each step (:func:`sample` builds it). ``at(t)`` returns the
-    rows of the grid point nearest ``t`` (views, no copy); calling the object on an array of
+    rows of the grid point nearest ``t`` (views, no copy, gathered once on first use: change the
+    arrays before that, not after); calling the object on an array of
     grid times returns a :class:`Reference` of arrays, so it also serves as the ``reference``
     of :func:`labsupport.sim.simulate`.
 
@@ -163,9 +165,16 @@ class SampledReference:
             k = int(t / self.dt + 0.5)
         except (TypeError, ValueError, OverflowError):  # not a finite number
             k = -1
-        if not 0 <= k < len(self.pos):
+        rows = self.rows
+        if not 0 <= k < len(rows):
             k = self.index(t)  # the careful path: raises, saying why
-        return Reference(self.pos[k], self.vel[k], self.acc[k])
+        return rows[k]
+
+    @cached_property
+    def rows(self) -> list[Reference]:
+        """Row :math:`k` of each array as one :class:`Reference` of views, made once on first use,
+        so that reading a row inside a control loop costs one list index."""
+        return [Reference(*row) for row in zip(self.pos, self.vel, self.acc, strict=True)]
 
     def __call__(self, t) -> Reference:
         """The samples at the grid times ``t`` (a float or an array of them)."""
