@@ -291,6 +291,19 @@ def test_complex_numbers_are_named_in_the_notebook_and_in_the_batch_grader(maste
         judge._decode("pd_torque", sandbox._encode(np.array([0.5 + 0j, 1, 2])), call=True)
 
 
+def test_an_object_that_fails_to_become_numbers_is_named_not_raised():
+    """The check promises never to raise because of the student's code: a returned object whose
+    own conversion fails with any exception is a zero with a reason, not a traceback."""
+
+    class Weird:
+        def __array__(self, dtype=None, copy=None):
+            raise RuntimeError("not today")
+
+    result = grade("p1_pd", pd_torque=lambda *args: Weird())
+    assert result.score == 0, result
+    assert "pd_torque returned a Weird that raised RuntimeError when read as numbers: not today" in result.message
+
+
 def test_ik_mistakes_are_named(master1):
     ik = master1["ik_3r"]
     degrees = grade("p1_ik", ik_3r=lambda x, elbow_up=True: np.degrees(ik(x, elbow_up)))

@@ -120,6 +120,11 @@ EXPECTED = {
     "corrupts_answers.ipynb": ({}, "graded", ["the notebook altered an answer in the grader's channel"]),
     # idle time: limited per cell (not over all cells together) and, over a check, in all
     "sleeps_between_cells.ipynb": (FULL, "graded", []),
+    "lies_about_cpu.ipynb": (  # CPU is counted by the judge, whatever the notebook's process reports
+        {"p1_ik": 3, "p1_pd": 2, "p1_ct": 3},
+        "graded",
+        ["p1_reach:", "the check ran out of CPU time (30 s"],
+    ),
     "sleeps_in_calls.ipynb": (
         {"p1_ik": 3, "p1_pd": 2, "p1_ct": 3},
         "graded",

@@ -230,17 +230,23 @@ class DirectProbe(Probe):
             raise ForbiddenCall(forbidden_message(used))
         if validate.is_complex(value):
             raise StudentError(complex_message(fname))
-        return _plain(value)
+        return _plain(value, f"{fname} returned")
 
     def get(self, name: str):
-        return _plain(self._lookup(name))
+        return _plain(self._lookup(name), f"{name} is")
 
 
-def _plain(value):
-    """Arrays and numbers as float arrays; anything else unchanged (``None`` stays ``None``)."""
+def _plain(value, what: str):
+    """Arrays and numbers as float arrays; anything else unchanged (``None`` stays ``None``). An
+    object whose conversion raises something else than ``TypeError``/``ValueError`` (its own
+    ``__array__`` or ``__float__`` failing) is a :class:`StudentError` naming ``what`` it is."""
     if value is None or isinstance(value, (str, bytes, dict)):
         return value
     try:
         return np.asarray(value, dtype=float)
     except (TypeError, ValueError):
         return value
+    except Exception as err:  # the student's object may raise anything while it is converted
+        raise StudentError(
+            f"{what} a {type(value).__name__} that raised {type(err).__name__} when read as numbers: {err}"
+        ) from None

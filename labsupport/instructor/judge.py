@@ -160,6 +160,7 @@ class SandboxProbe(Probe):
         self.check_cpu_left = float("inf")  # set by the judge for each check
         self.check_idle_left = float("inf")  # likewise
         self.cpu_seen = 0.0
+        self.server: tuple[int, int] | None = None  # (sandbox pid, its cell server's pid)
         self.first_run: dict | None = None
         self.start_problem: str | None = None
 
@@ -258,7 +259,7 @@ class SandboxProbe(Probe):
                 self._check_idle(idle, per_check)
             answer = self._answer(fd, nonce, wait=max(0.0, next_poll - time.monotonic()))
             if answer is not None:
-                cpu = float(answer.get("cpu", 0.0)) if isinstance(answer.get("cpu"), (int, float)) else 0.0
+                cpu = self._server_cpu(answer)
                 if per_check:
                     self.check_cpu_left -= max(0.0, cpu - self.cpu_seen)
                     self.check_idle_left -= idle
@@ -324,9 +325,23 @@ class SandboxProbe(Probe):
                 return answer
         return None
 
+    def _server_cpu(self, answer: dict) -> float:
+        """CPU time [s] the cell server has used so far, all its threads and its ended children
+        included, read by the judge from ``/proc``. The ``cpu`` the answer reports is used only
+        where ``/proc`` cannot be read (the server has just ended): the submission's code runs in
+        that process and can change what it reports (``time.process_time = lambda: 0.0``), so a
+        budget counted from it could be dodged."""
+        try:
+            return _stat(self._server_pid())[1] / os.sysconf("SC_CLK_TCK")
+        except (OSError, ValueError, IndexError):
+            reported = answer.get("cpu")
+            return max(self.cpu_seen, float(reported) if type(reported) in (int, float) else 0.0)
+
     def _server_pid(self) -> int:
         """The cell server: bubblewrap's grandchild (bubblewrap, its PID-1 init, the server), or the
         process itself without a sandbox."""
+        if self.server is not None and self.server[0] == self.proc.pid:
+            return self.server[1]
         pid = self.proc.pid
         for _ in range(self.depth):
             try:
@@ -334,6 +349,7 @@ class SandboxProbe(Probe):
                     pid = int(f.read().split()[0])
             except (OSError, ValueError, IndexError):
                 return pid
+        self.server = (self.proc.pid, pid)  # found: kept for this sandbox's later requests
         return pid
 
     def _ensure(self) -> None:

@@ -217,6 +217,19 @@ def ct_joint_torque(model, data, q_d, Kp, Kd):
     return honest_ct(model, data, q_d, Kp, Kd)
 """
 
+#: Slow in every call of a run (more CPU over the reach check than a check may use), and it hides
+#: that from any CPU figure the notebook's own process reports: only the judge's /proc reading counts.
+LIES_ABOUT_CPU = r"""
+import time
+time.process_time = lambda: 0.0
+honest_ct = ct_joint_torque
+def ct_joint_torque(model, data, q_d, Kp, Kd):
+    if data.time > 0:  # the test states of the p1_ct check are at t = 0; a run's steps are not
+        for _ in range(1_200_000):
+            pass
+    return honest_ct(model, data, q_d, Kp, Kd)
+"""
+
 
 def memoriser(table: dict) -> str:
     """A notebook cell answering the public checks from a lookup table (and nothing else)."""
@@ -312,6 +325,7 @@ def hostile() -> dict[str, object]:
         nb = insert_after(nb, _imports(master) + k, f"import time\ntime.sleep(3.5)  # pause {k + 1}")
     out["sleeps_between_cells.ipynb"] = nb
     out["sleeps_in_calls.ipynb"] = insert_after(m(), len(master.cells) - 1, SLEEPS_IN_CALLS)
+    out["lies_about_cpu.ipynb"] = insert_after(m(), len(master.cells) - 1, LIES_ABOUT_CPU)
     out["kills_grader.ipynb"] = insert_after(
         m(), _imports(master), "import os, signal\nos.kill(os.getppid(), signal.SIGKILL)\nos.kill(-1, signal.SIGKILL)"
     )
