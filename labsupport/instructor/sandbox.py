@@ -21,9 +21,9 @@ Limits count the process's own CPU time (``ITIMER_PROF``) and the time it spends
 without being runnable (wall time minus CPU time minus time spent queued for a CPU, from
 ``/proc/self/schedstat``): neither depends on how busy the machine is. Every answer carries
 ``cpu``, the process's CPU time so far, for information: the student's code runs in this process
-and could change it, so the judge counts a check's budget from ``/proc`` itself. Values travel as JSON (``{"none": true}``,
-``{"array": [...], "shape": [...]}``, ``{"raised": "..."}``): nothing the student returns is
-ever unpickled by the grader.
+and could change it, so the judge counts a check's budget from ``/proc`` itself. Values travel
+as JSON (``{"none": true}``, ``{"array": [...], "shape": [...]}``, ``{"raised": "..."}``):
+nothing the student returns is ever unpickled by the grader.
 """
 
 from __future__ import annotations
