@@ -4,9 +4,12 @@ labsupport, secret seeds, and the student's package holding no answer."""
 
 import ast
 import importlib
+import importlib.util
 import inspect
 import pkgutil
 import sys
+import threading
+import types
 from pathlib import Path
 
 import mujoco
@@ -649,6 +652,61 @@ def test_the_watch_leaves_other_profilers_running():
     assert value == 5.0 and used is None and "call" in seen
     assert rules.is_forbidden_module("labsupport.controllers.ur5e")
     assert not rules.is_forbidden_module("labsupport.dynamics") and not rules.is_forbidden_module("labsupport.grading")
+
+
+def test_a_call_made_in_a_thread_the_law_starts_is_seen():
+    def ct_in_a_thread(model, data, q_d, Kp, Kd):
+        out, zero = [], np.zeros(3)
+        worker = threading.Thread(
+            target=lambda: out.append(joint_space_alias.ct_joint_torque(model, data, q_d, zero, zero, Kp, Kd))
+        )
+        worker.start()
+        worker.join()
+        return out[0]
+
+    result = grade("p1_ct", ct_joint_torque=ct_in_a_thread)
+    assert result.score == 0 and "labsupport.controllers.joint_space.ct_joint_torque is off limits" in result.message
+
+
+def test_switching_the_watch_off_scores_zero_and_says_why():
+    def pd_unwatched(model, data, q_d, Kp, Kd):
+        sys.setprofile(None)
+        return Kp * (q_d - data.qpos) - Kd * data.qvel  # even a right law: the check cannot see it
+
+    result = grade("p1_pd", pd_torque=pd_unwatched)
+    assert result.score == 0 and "sys.setprofile" in result.message and rules.MARKER in result.message
+    assert sys.getprofile() is None
+
+
+def test_a_law_rebuilt_from_its_code_or_loaded_from_its_file_under_another_name_is_seen():
+    code = joint_space_alias.ct_joint_torque.__code__
+    rebuilt = types.FunctionType(code, {**vars(joint_space_alias), "__name__": "mine"})
+    spec = importlib.util.spec_from_file_location("my_controllers", joint_space_alias.__file__)
+    reloaded = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(reloaded)
+    for law in (rebuilt, reloaded.ct_joint_torque):
+
+        def ct(model, data, q_d, Kp, Kd, law=law):
+            return law(model, data, q_d, np.zeros(3), np.zeros(3), Kp, Kd)
+
+        result = grade("p1_ct", ct_joint_torque=ct)
+        assert result.score == 0, result
+        assert "labsupport.controllers.joint_space.ct_joint_torque is off limits" in result.message
+
+
+def test_a_value_that_runs_the_law_when_read_as_numbers_is_seen():
+    class Lazy:  # computes the torque only when the check reads it, after the call returned
+        def __init__(self, *args):
+            self.args = args
+
+        def __array__(self, dtype=None, copy=None):
+            return np.asarray(joint_space_alias.ct_joint_torque(*self.args), dtype=dtype)
+
+    def ct_lazy(model, data, q_d, Kp, Kd):
+        return Lazy(model, data, np.array(q_d), np.zeros(3), np.zeros(3), Kp, Kd)
+
+    result = grade("p1_ct", ct_joint_torque=ct_lazy)
+    assert result.score == 0 and "labsupport.controllers.joint_space.ct_joint_torque is off limits" in result.message
 
 
 # --- seeds ----------------------------------------------------------------------------------------------

@@ -107,6 +107,14 @@ EXPECTED = {
             "p1_ct: CT: labsupport.controllers.joint_space.ct_joint_torque is off limits",
         ],
     ),
+    "hides_borrowed_code.ipynb": (  # the same, from a worker thread and a lazily computed value
+        {"p1_pd": 2},
+        "graded",
+        [
+            "p1_ik: IK: labsupport.kinematics.planar_2r.Planar2R is off limits in a Problem TODO",
+            "p1_ct: CT: labsupport.controllers.joint_space.ct_joint_torque is off limits",
+        ],
+    ),
     # attacks on the grader, from notebooks that implement nothing: any point is a successful attack
     "escapes.ipynb": ({}, "graded", NOTHING),
     "writes_everywhere.ipynb": ({}, "graded", ["wrote files: /home/student/junk.txt"]),

@@ -218,8 +218,15 @@ class DirectProbe(Probe):
         fn = self._lookup(fname)
         if not callable(fn):
             raise StudentError(f"{fname} should be a function, but it is a {type(fn).__name__}")
+
+        def call_and_read():  # read as numbers under the watch too: an __array__ runs code
+            value = fn(*self._expand(args), **kwargs)
+            if validate.is_complex(value):
+                raise StudentError(complex_message(fname))
+            return _plain(value, f"{fname} returned")
+
         try:
-            value, used = call_watched(fn, *self._expand(args), **kwargs)
+            value, used = call_watched(call_and_read)
         except ForbiddenUse as err:
             raise ForbiddenCall(str(err)) from None
         except StudentError:
@@ -228,9 +235,7 @@ class DirectProbe(Probe):
             raise StudentError(f"{fname} raised {type(err).__name__}: {err}") from None
         if used is not None:
             raise ForbiddenCall(forbidden_message(used))
-        if validate.is_complex(value):
-            raise StudentError(complex_message(fname))
-        return _plain(value, f"{fname} returned")
+        return value
 
     def get(self, name: str):
         return _plain(self._lookup(name), f"{name} is")

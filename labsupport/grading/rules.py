@@ -9,8 +9,10 @@ that TODO, with :func:`forbidden_message` as the reason.
 Two places enforce it:
 
 * the in-notebook check calls the student's function under :func:`call_watched`, which notes
-  every Python function the call runs and flags one defined in a :data:`FORBIDDEN` module
-  (however it was imported or renamed);
+  every Python function the call runs, in its own thread and in threads it starts, and flags
+  one defined in a :data:`FORBIDDEN` module, by module name or by source file (so a function
+  imported under another name, loaded from its file as another module, or rebuilt from its
+  code object is still caught);
 * the batch grader's sandbox replaces the :data:`FORBIDDEN` modules by stubs whose functions
   raise ``RuntimeError(forbidden_message(name))``; the checks recognise that message
   (:func:`is_forbidden_message`) and give the same zero with the same reason.
@@ -18,8 +20,12 @@ Two places enforce it:
 
 from __future__ import annotations
 
+import importlib.util
+import os
 import sys
+import threading
 from collections.abc import Callable
+from functools import cache
 
 #: Module prefixes a Problem TODO may not call into: the Tasks' control laws, the arms'
 #: kinematics, and the checks' own internals (they evaluate the Problems' formulas).
@@ -53,13 +59,21 @@ ALLOWED: tuple[str, ...] = (
 MARKER = "is off limits in a Problem TODO"
 
 
-class ForbiddenUse(Exception):
-    """A student's function ran a function of a :data:`FORBIDDEN` module; the message is
-    :func:`forbidden_message` of its qualified name."""
+#: Why a function that switched off :func:`call_watched`'s watch scores zero in the notebook.
+WATCH_REMOVED = (
+    f"switching off the check's watch (sys.setprofile) {MARKER}: the check must see which "
+    "functions yours runs. Remove that call. This TODO scores zero."
+)
 
-    def __init__(self, qualified_name: str):
+
+class ForbiddenUse(Exception):
+    """A student's function ran a function of a :data:`FORBIDDEN` module (the message is
+    :func:`forbidden_message` of its qualified name), or switched off the watch that would see
+    it (the message is :data:`WATCH_REMOVED`)."""
+
+    def __init__(self, qualified_name: str, message: str | None = None):
         self.qualified_name = qualified_name
-        super().__init__(forbidden_message(qualified_name))
+        super().__init__(forbidden_message(qualified_name) if message is None else message)
 
 
 def forbidden_message(qualified_name: str) -> str:
@@ -81,6 +95,51 @@ def is_forbidden_module(module: str) -> bool:
     return any(module == p or module.startswith(p + ".") for p in FORBIDDEN)
 
 
+@cache
+def forbidden_files() -> dict[str, str]:
+    """``{source path: module}`` for the files of the :data:`FORBIDDEN` modules that exist (a
+    package's path is its folder, ending in a separator)."""
+    files = {}
+    for module in FORBIDDEN:
+        try:
+            spec = importlib.util.find_spec(module)
+        except (ImportError, ValueError):
+            continue
+        if spec is None:
+            continue
+        if spec.submodule_search_locations:
+            for folder in spec.submodule_search_locations:
+                files[os.path.join(os.path.realpath(folder), "")] = module
+        elif spec.origin:
+            files[os.path.realpath(spec.origin)] = module
+    return files
+
+
+def _forbidden_module_of(frame) -> str | None:
+    """The :data:`FORBIDDEN` module the function running in ``frame`` comes from, by its
+    globals' ``__name__`` or its code's source file, else ``None``."""
+    module = frame.f_globals.get("__name__", "")
+    if module.startswith("labsupport.") and is_forbidden_module(module):
+        return module
+    return _forbidden_module_of_file(frame.f_code.co_filename)
+
+
+@cache
+def _forbidden_module_of_file(filename: str) -> str | None:
+    """The :data:`FORBIDDEN` module whose source file is ``filename``, else ``None`` (cached:
+    the watch asks for every call)."""
+    if filename.startswith("<"):  # code typed in a cell or built from a string
+        return None
+    filename = os.path.realpath(filename)
+    for path, owner in forbidden_files().items():
+        if filename == path:
+            return owner
+        if path.endswith(os.sep) and filename.startswith(path):
+            rest = os.path.splitext(filename[len(path) :])[0].replace(os.sep, ".")
+            return owner if rest == "__init__" else f"{owner}.{rest}"
+    return None
+
+
 def _called_name(frame) -> str:
     """The name a student wrote for the function running in ``frame``: its qualified name, or
     for a class's ``__init__`` (a dataclass's is generated code, named
@@ -98,6 +157,9 @@ def _called_name(frame) -> str:
 def call_watched(fn: Callable, *args, **kwargs):
     """Call ``fn(*args, **kwargs)``, watching which Python functions it runs.
 
+    The watch is a profile function (``sys.setprofile``) in the calling thread and in every
+    thread started during the call (``threading.setprofile``).
+
     Returns:
         ``(value, used)``: what ``fn`` returned, and the qualified name of the first function
         of a :data:`FORBIDDEN` module it ran (directly or through any chain of calls), or
@@ -105,19 +167,21 @@ def call_watched(fn: Callable, *args, **kwargs):
 
     Raises:
         ForbiddenUse: ``fn`` raised after running a forbidden function (the forbidden use is
-            the reason that counts). Any other exception of ``fn`` passes through.
+            the reason that counts), or ``fn`` switched the watch off. Any other exception of
+            ``fn`` passes through.
     """
     used: list[str] = []
-    previous = sys.getprofile()
+    previous, previous_threads = sys.getprofile(), threading.getprofile()
 
     def watch(frame, event, arg):
         if event == "call" and not used:
-            module = frame.f_globals.get("__name__", "")
-            if module.startswith("labsupport.") and is_forbidden_module(module):
+            module = _forbidden_module_of(frame)
+            if module is not None:
                 used.append(f"{module}.{_called_name(frame)}")
         if previous is not None:
             previous(frame, event, arg)
 
+    threading.setprofile(watch)
     sys.setprofile(watch)
     try:
         value = fn(*args, **kwargs)
@@ -126,5 +190,9 @@ def call_watched(fn: Callable, *args, **kwargs):
             raise ForbiddenUse(used[0]) from None
         raise
     finally:
+        removed = sys.getprofile() is not watch
         sys.setprofile(previous)
+        threading.setprofile(previous_threads)
+    if removed and not used:
+        raise ForbiddenUse("sys.setprofile", WATCH_REMOVED)
     return value, (used[0] if used else None)

@@ -118,6 +118,34 @@ BORROWED_CT = """def ct_joint_torque(model, data, q_d, Kp, Kd):
     from labsupport.controllers.joint_space import ct_joint_torque as task3_ct
     return task3_ct(model, data, q_d, np.zeros(3), np.zeros(3), Kp, Kd)"""
 
+#: The same borrowing, hidden: the IK solved in a worker thread (whose error the thread swallows)
+#: and the torque computed only when the grader reads the returned value as numbers.
+HIDDEN_IK = """def ik_3r(x, elbow_up=True):
+    import threading
+    from labsupport.kinematics.planar_2r import Planar2R, inverse_kinematics
+    out = {}
+    def work():
+        rho, h = np.hypot(x[0], x[1]), x[2] - 1.0
+        out["q"] = inverse_kinematics(np.array([h, rho]), Planar2R(1.0, 1.0), "up" if elbow_up else "down")
+    worker = threading.Thread(target=work)
+    worker.start()
+    worker.join()
+    q2, theta = out["q"]
+    return np.array([np.arctan2(x[1], x[0]), q2, theta - np.pi / 2])"""
+
+HIDDEN_CT = """class Deferred:
+    def __init__(self, *args):
+        self.args = args
+    def __array__(self, dtype=None, copy=None):
+        from labsupport.controllers.joint_space import ct_joint_torque as task3_ct
+        return np.asarray(task3_ct(*self.args), dtype=dtype)
+    def __len__(self):
+        return 3
+
+
+def ct_joint_torque(model, data, q_d, Kp, Kd):
+    return Deferred(model, data, np.array(q_d, dtype=float), np.zeros(3), np.zeros(3), Kp, Kd)"""
+
 MASTERS_VIA_INTERPRETER = r"""
 import os, sys, json, pathlib
 import labsupport
@@ -340,6 +368,8 @@ def hostile() -> dict[str, object]:
     )
     nb = replace_function(m(), "ik_3r", BORROWED_IK)  # answers through labsupport: zero, with the reason
     out["borrows_task_code.ipynb"] = replace_function(nb, "ct_joint_torque", BORROWED_CT)
+    nb = replace_function(m(), "ik_3r", HIDDEN_IK)
+    out["hides_borrowed_code.ipynb"] = replace_function(nb, "ct_joint_torque", HIDDEN_CT)
     nb = m()
     imports = nb.cells.pop(_imports(nb))
     nb.cells.insert(_defining(nb, "ik_3r") + 1, imports)
