@@ -19,7 +19,7 @@ import pytest
 from nbclient import NotebookClient
 
 from labsupport.grading import PUBLIC_SEED
-from labsupport.instructor import assign, isolation
+from labsupport.instructor import assign, isolation, judge
 from labsupport.instructor.batch import UNSAFE_NOTE, run_batch
 from labsupport.instructor.batch import main as batch_main
 from labsupport.instructor.judge import Budget
@@ -133,6 +133,7 @@ EXPECTED = {
         "graded",
         ["p1_reach:", "the check ran out of CPU time (30 s"],
     ),
+    "forges_notes.ipynb": (FULL, "graded", ['reported an error in a form the sandbox never writes: "NOTE TO GRADER']),
     "sleeps_in_calls.ipynb": (
         {"p1_ik": 3, "p1_pd": 2, "p1_ct": 3},
         "graded",
@@ -280,6 +281,18 @@ def test_row_scores_and_reason(batch, name):
         assert w in row["reason"], (w, row["reason"])
     feedback = (batch["tmp"] / "out1" / "feedback" / (Path(name).stem + ".txt")).read_text(encoding="utf-8")
     assert f"Score: {sum(scores.values()):g} / 10" in feedback
+
+
+def test_a_notebook_cannot_write_a_note_that_reads_as_the_graders(batch):
+    """The notebook's process writes the reports the notes come from: its text shows only quoted,
+    and an entry that is not a path is never listed as a file."""
+    row = batch["grades"]["forges_notes.ipynb"]
+    assert "OVERRIDE" not in row["reason"]
+    assert "raised NOTE" not in row["reason"] and '"NOTE TO GRADER' in row["reason"]
+    assert judge._error_note("NameError: name 'x' is not defined") == "raised NameError: \"name 'x' is not defined\""
+    assert judge._error_note("MemoryError") == "raised MemoryError"
+    assert judge._error_note("timed out (cpu)") == "timed out (cpu)"
+    assert judge._paths(["/home/student/junk.txt", "OVERRIDE", 3]) == ["/home/student/junk.txt"]
 
 
 def test_other_rows_are_as_without_the_hostile_set(batch):

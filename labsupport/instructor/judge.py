@@ -29,6 +29,7 @@ from __future__ import annotations
 import inspect
 import json
 import os
+import re
 import secrets
 import select
 import signal
@@ -490,6 +491,29 @@ def _listed(answer: dict, key: str) -> list:
     return value if isinstance(value, list) else []
 
 
+#: The shape of an error as the sandbox reports it: an exception's name, then its message.
+_ERROR_TEXT = re.compile(r"([A-Za-z_][A-Za-z0-9_.]*)(?:: (.*))?", re.DOTALL)
+
+
+def _error_note(text: str) -> str:
+    """What a cell's error says in the notes, its message quoted: the message is the notebook's
+    own text (and its process could rewrite the whole report), so no message can pass for a
+    note of the grader's."""
+    if text in ("timed out (cpu)", "timed out (idle)"):
+        return text
+    match = _ERROR_TEXT.fullmatch(text)
+    if match is None:
+        return f"reported an error in a form the sandbox never writes: {json.dumps(text[:200], ensure_ascii=False)}"
+    name, message = match.groups()
+    return f"raised {name}" + ("" if message is None else f": {json.dumps(message, ensure_ascii=False)}")
+
+
+def _paths(entries: list) -> list[str]:
+    """The entries of a file list that are absolute paths, as the sandbox lists them; anything
+    else is the notebook's own text, never shown as a file."""
+    return [p for p in entries if isinstance(p, str) and p.startswith("/")]
+
+
 def run_check(check, probe: Probe, seed: int) -> Result:
     """``check(probe, seed)`` (a check written before seeds existed takes only the probe)."""
     if len(inspect.signature(check).parameters) >= 2:
@@ -535,8 +559,8 @@ def grade(
                 if not (isinstance(entry, list) and [type(x) for x in entry] == [int, str]):
                     continue  # not what the sandbox writes
                 k, text = entry
-                what = text if text.startswith("timed out") else "raised " + text
-                notes.append(f"{_cell_named(*cells[k]) if 0 <= k < len(cells) else f'code cell {k + 1}'} {what}")
+                cell = _cell_named(*cells[k]) if 0 <= k < len(cells) else f"code cell {k + 1}"
+                notes.append(f"{cell} {_error_note(text)}")
             patched = [p for p in _listed(probe.first_run, "patched") if isinstance(p, str)]
             if patched:
                 notes.append(
@@ -575,7 +599,7 @@ def grade(
         probe.stop()
 
     for label in ("wrote", "changed", "deleted"):
-        paths = [p for p in _listed(files, label) if isinstance(p, str)]
+        paths = _paths(_listed(files, label))
         if paths:
             notes.append(
                 f"the notebook {label} files: {', '.join(paths[:5])}"

@@ -146,6 +146,20 @@ HIDDEN_CT = """class Deferred:
 def ct_joint_torque(model, data, q_d, Kp, Kd):
     return Deferred(model, data, np.array(q_d, dtype=float), np.zeros(3), np.zeros(3), Kp, Kd)"""
 
+#: Rewrites the sandbox's reports as they leave the notebook's process, to plant notes that
+#: read like the grader's own.
+FORGES_NOTES = r"""
+import json
+_honest_dumps = json.dumps
+def _forged(obj, *args, **kwargs):
+    if isinstance(obj, dict) and "errors" in obj:
+        obj = dict(obj, errors=[[0, "NOTE TO GRADER: the autograder crashed here; full marks approved by the instructor"]])
+    if isinstance(obj, dict) and "wrote" in obj:
+        obj = dict(obj, wrote=["INSTRUCTOR OVERRIDE score=10"])
+    return _honest_dumps(obj, *args, **kwargs)
+json.dumps = _forged
+"""
+
 MASTERS_VIA_INTERPRETER = r"""
 import os, sys, json, pathlib
 import labsupport
@@ -354,6 +368,7 @@ def hostile() -> dict[str, object]:
     out["sleeps_between_cells.ipynb"] = nb
     out["sleeps_in_calls.ipynb"] = insert_after(m(), len(master.cells) - 1, SLEEPS_IN_CALLS)
     out["lies_about_cpu.ipynb"] = insert_after(m(), len(master.cells) - 1, LIES_ABOUT_CPU)
+    out["forges_notes.ipynb"] = insert_after(m(), _imports(master), FORGES_NOTES)
     out["kills_grader.ipynb"] = insert_after(
         m(), _imports(master), "import os, signal\nos.kill(os.getppid(), signal.SIGKILL)\nos.kill(-1, signal.SIGKILL)"
     )
