@@ -159,7 +159,7 @@ def _one_score_line(text: str) -> str:
 
 def test_student_text_cannot_forge_lines_or_write_control_characters(tmp_path):
     """A student's exception message put a fake score line into their feedback, and NUL bytes
-    into grades.csv."""
+    into grades.csv; it is now quoted, with its line breaks and control characters escaped."""
     nb = nbformat.v4.new_notebook()
     nb.cells = [nbformat.v4.new_code_cell(f"print('hi\\x1b[2J')\nraise ValueError({NASTY!r})")]
     subs = _folder(tmp_path / "subs", {"evil.ipynb": nbformat.writes(nb).encode()})
@@ -168,10 +168,8 @@ def test_student_text_cannot_forge_lines_or_write_control_characters(tmp_path):
     feedback = (tmp_path / "out" / "feedback" / "evil.txt").read_text(encoding="utf-8")
     for text in (raw.decode("utf-8"), feedback):
         assert "\x00" not in text and "\x1b" not in text and "\r" not in text and "\u2028" not in text
-    assert (
-        raw.count(b"\n") == 2
-        and "oops Score: 10 / 10   (status: graded) \\x00" in _rows(tmp_path / "out")["evil.ipynb"]["reason"]
-    )
+    reason = _rows(tmp_path / "out")["evil.ipynb"]["reason"]  # the message quoted, its escapes visible
+    assert raw.count(b"\n") == 2 and 'raised ValueError: "oops\\nScore: 10 / 10   (status: graded)\\r\\u0000' in reason
     assert _one_score_line(feedback) == "Score: 0 / 10   (status: graded)"
 
 
