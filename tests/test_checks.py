@@ -537,6 +537,84 @@ def test_numerical_ik_gets_full_marks():
     assert result.status == PASS and result.score == 1, result
 
 
+def elbow_above_line(model, q) -> bool:
+    """Whether the elbow lies above the shoulder-to-tip line (world up, made perpendicular to it)."""
+    d = mujoco.MjData(model)
+    d.qpos[:] = q
+    mujoco.mj_kinematics(model, d)
+    shoulder, elbow, tip = d.body("link2").xpos, d.body("link3").xpos, d.site(SITE).xpos
+    line = (tip - shoulder) / np.linalg.norm(tip - shoulder)
+    return bool((elbow - shoulder) @ (np.array([0.0, 0.0, 1.0]) - line[2] * line) > 0)
+
+
+def leaning_back(ik):
+    """``ik`` turned into an IK that answers with the over-the-top pose: pan half a turn round,
+    the planar pose mirrored across the vertical (q2 -> -q2, theta -> -theta), angles left
+    unwrapped as a numerical IK may leave them."""
+
+    def over_the_top_ik(x, elbow_up=True):
+        q = ik(x, elbow_up)
+        return np.array([q[0] + np.pi, -q[1], -q[2] - np.pi])
+
+    return over_the_top_ik
+
+
+def test_the_over_the_top_ik_is_named_in_both_problems(master1):
+    """An IK that reaches every target leaning back over the shoulder gets zero in Problem 1 with
+    the reason (it is not the asked q1 = atan2(y, x)), and Problem 2's check of the law names it
+    instead of a bare torque mismatch."""
+    model, rng = common.arm_model(), np.random.default_rng(7)
+    for up in (True, False) * 10:  # the pose is a right answer to the kinematics, on the side asked
+        x = tip_at(model, common.draw_configuration(rng, up))
+        q = leaning_back(newton_ik)(x, up)
+        assert np.linalg.norm(tip_at(model, q) - x) < 1e-9 and elbow_above_line(model, q) == up
+    p1 = grade("p1_ik", OTHER_SEED, ik_3r=leaning_back(newton_ik))
+    ik = leaning_back(master1["ik_3r"])
+    assert p1.score == 0 and "half a turn from the target's azimuth atan2(y, x)" in p1.message, p1
+
+    def ct_ik_joint_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        return ik_ct_law(model, data, x_d, xd_d, xdd_d, Kp, Kd, ik=ik)
+
+    p2 = grade("p2_ikct", OTHER_SEED, ct_ik_joint_torque=ct_ik_joint_torque)
+    assert p2.score == 0 and "the IK returns the over-the-top solution" in p2.message, p2
+
+
+def test_an_ik_that_changes_branch_along_the_circle_is_named(master1, master2):
+    """Front solution for the first part of the circle, then the over-the-top one: the law's check
+    at its test states can pass, and the tracking run says when and why the arm left its branch."""
+    center, radius, normal, q0, qdot0 = problem2.tracking_circle(OTHER_SEED)
+    start = tip_at(common.arm_model(), q0)
+    front = master1["ik_3r"]
+    back = leaning_back(front)
+
+    def switching_ik(x, elbow_up=True):
+        return back(x, elbow_up) if np.linalg.norm(np.asarray(x) - start) > radius else front(x, elbow_up)
+
+    def ct_ik_joint_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        return ik_ct_law(model, data, x_d, xd_d, xdd_d, Kp, Kd, ik=switching_ik)
+
+    track = grade("p2_track", OTHER_SEED, ct_op_torque=master2["ct_op_torque"], ct_ik_joint_torque=ct_ik_joint_torque)
+    assert track.score == 0.5, track
+    assert "the arm faced away from its tip, on the over-the-top solution" in track.message
+    t_switch = float(track.message.split("at t = ")[1].split(" s")[0])
+    # the IK switches a sixth of the way round (chord = radius); the arm follows within a few tenths of a second
+    assert problem2.TRACK_DURATION / 6 < t_switch < problem2.TRACK_DURATION / 6 + 0.5, track.message
+
+
+def test_a_run_that_leaves_its_branch_is_told_which_way():
+    """The poses a run logs tell the branch it left for: elbow down, or over the top."""
+    model, rng = common.arm_model(), np.random.default_rng(11)
+    front = [common.draw_configuration(rng, elbow_up=True) for _ in range(3)]
+    for other, words in (
+        (common.mirror_elbow(front[2]), "at t = 0.20 s the elbow was below the shoulder-to-tip line"),
+        (common.over_the_top(front[2]), "at t = 0.20 s the arm faced away from its tip, on the over-the-top"),
+    ):
+        q = np.array([*front[:2], other])
+        log = types.SimpleNamespace(q=q, ee=np.array([tip_at(model, p) for p in q]), t=np.array([0.0, 0.1, 0.2]))
+        assert words in problem2._left_the_branch(model, log, every=1)
+        assert problem2._left_the_branch(model, types.SimpleNamespace(q=q[:2], ee=log.ee[:2], t=log.t[:2]), 1) is None
+
+
 def test_finite_difference_jdot_tracks_and_never_scores_below_dropping_it(master2):
     fd = {"ct_op_torque": os_fd_time(), "ct_ik_joint_torque": ik_ct_fd_time(master2["ik_3r"])}
     dropped = {"ct_op_torque": os_no_jdot, "ct_ik_joint_torque": master2["ct_ik_joint_torque"]}

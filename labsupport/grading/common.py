@@ -143,6 +143,21 @@ def draw_configuration(rng: np.random.Generator, elbow_up: bool = True, margins:
             return q
 
 
+def over_the_top(q) -> np.ndarray:
+    r"""The same tip reached with the pan half a turn round: :math:`q_1 \to q_1 + \pi`,
+    :math:`q_2 \to -q_2`, :math:`q_3 \to -q_3 - \pi` (angles wrapped into :math:`(-\pi, \pi]`).
+    The arm leans back over its shoulder, its elbow on the same side of the shoulder–tip line;
+    it is not the Problem's solution, whose pan angle is the tip's azimuth."""
+    flipped = np.array([q[0] + np.pi, -q[1], -q[2] - np.pi])
+    return np.pi - (np.pi - flipped) % (2 * np.pi)
+
+
+def pan_turned_round(q, x) -> bool:
+    """Whether the pan angle ``q[0]`` points the arm's plane away from the target ``x`` (its
+    azimuth plus about half a turn) instead of at it: the over-the-top solution."""
+    return abs((q[0] - np.arctan2(x[1], x[0]) + np.pi) % (2 * np.pi) - np.pi) > np.pi / 2
+
+
 def mirror_elbow(q) -> np.ndarray:
     r"""The other elbow branch with the same tip: :math:`\theta = q_3 + \pi/2 \to -\theta`,
     :math:`q_2 \to q_2 + \theta` (reflection of the elbow across the shoulder–tip line)."""

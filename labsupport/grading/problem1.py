@@ -25,6 +25,7 @@ from labsupport.grading.common import (
     draw_configuration,
     elbow_height,
     judge_torque,
+    pan_turned_round,
     rng_for,
     run_student,
     terms,
@@ -64,6 +65,14 @@ def _ik_problem(model, q, x, up: bool) -> str | None:
     """What is wrong with ``q`` as the ``up`` branch's solution for target ``x`` (None if right)."""
     err = float(np.linalg.norm(tip(model, q) - x))
     if err <= IK_TOL:
+        if pan_turned_round(q, x):
+            return (
+                f"the {_branch(up)} call reaches the target, but its pan angle q1 = {q[0]:.4f} rad is half a "
+                f"turn from the target's azimuth atan2(y, x) = {float(np.arctan2(x[1], x[0])):.4f} rad: the arm "
+                "leans back over its shoulder. That pose is another solution, not the one this Problem asks for, "
+                "and Problem 2's arm runs on the one facing the target: take q1 = atan2(y, x) (a numerical IK: "
+                "fix q1 there, or start from it, and solve for q2, q3)"
+            )
         if (elbow_height(model, q) > 0) != up:
             return (
                 f"the {_branch(up)} call reaches the target, but with the elbow "

@@ -35,6 +35,8 @@ from labsupport.grading.common import (
     elbow_height,
     judge_torque,
     mirror_elbow,
+    over_the_top,
+    pan_turned_round,
     rng_for,
     run_student,
     safe_point,
@@ -71,6 +73,10 @@ TRACK_DURATION = 1 / FREQUENCY
 GRAVITY_ONLY = (
     "the bias term holds gravity alone; h(q, q̇) = data.qfrc_bias also holds the Coriolis and "
     "centrifugal forces, which grow with the speed (gravity alone is h only at rest)"
+)
+OVER_THE_TOP = (
+    "the over-the-top solution: it reaches x_d with the pan angle half a turn from atan2(y, x) and the "
+    "arm leaning back over its shoulder"
 )
 JDOT_HINT = (
     'MuJoCo gives it: site_jdot_qdot(model, data, "end_effector")[:3]; a finite-difference '
@@ -216,9 +222,12 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
     qd_now = np.linalg.solve(T.J, xd_d)
     q_down = mirror_elbow(q_d)
     qd_down, qdd_down = _joint_reference_terms(model, q_down, xd_d, xdd_d)
+    q_top = over_the_top(q_d)
+    qd_top, qdd_top = _joint_reference_terms(model, q_top, xd_d, xdd_d)
     # The same pose with some angle a full turn away: the IK is right as kinematics, but joint-space
     # control then drives that joint a full turn (q_d - q is off by 2π).
-    turns = [np.array(k) for k in itertools.product((-1, 0, 1), repeat=3) if any(k)]
+    shifts = [np.array(k) for k in itertools.product((-1, 0, 1), repeat=3)]
+    turns = [k for k in shifts if any(k)]
     unwrapped = {
         f"unwrapped_{branch}_{i}": Mistake(
             law(qdd, qd=qd, qq=qq + 2 * np.pi * k),
@@ -271,6 +280,15 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
             0.0,
         ),
         **unwrapped,
+        **{  # whatever full turns the IK adds to it
+            f"over_the_top_{i}": Mistake(
+                law(qdd_top, qd=qd_top, qq=q_top + 2 * np.pi * k),
+                f"the IK returns {OVER_THE_TOP}, while the arm runs facing the target, so the joint CT swings "
+                "it half a turn round: take q1 = atan2(y, x).",
+                0.0,
+            )
+            for i, k in enumerate(shifts)
+        },
     }
 
 
@@ -347,6 +365,23 @@ def tracking_circle(seed: int):
     return center, radius, normal, q0, qdot0
 
 
+def _left_the_branch(model, log, every: int = 10) -> str | None:
+    """Where a run of IK + joint CT left the elbow-up solution facing the target (the branch the
+    arm starts on), found from the logged poses, or None if it kept to it."""
+    for q, x, t in zip(log.q[::every], log.ee[::every], log.t[::every], strict=True):
+        if pan_turned_round(q, x):
+            return (
+                f"at t = {t:.2f} s the arm faced away from its tip, on the over-the-top solution (pan half a "
+                "turn from atan2(y, x)): does the IK switch to it there?"
+            )
+        if elbow_height(model, q) < 0:
+            return (
+                f"at t = {t:.2f} s the elbow was below the shoulder-to-tip line, on the elbow-down branch: "
+                "does the IK switch to it there?"
+            )
+    return None
+
+
 def check_tracking(probe: Probe, seed: int) -> Result:
     """Both of the student's controllers track one turn of a seeded circle with RMS error below
     1 mm, starting on it and moving with it."""
@@ -375,7 +410,11 @@ def check_tracking(probe: Probe, seed: int) -> Result:
             score += 0.5
             notes.append(f"{label}: RMS error {err * 1e3:.3g} mm (needs < 1 mm)")
         else:
-            notes.append(f"{label}: RMS error {show_beside(err * 1e3, RMS_TOL * 1e3)} mm, should be below 1 mm")
+            left = _left_the_branch(arm_model(), log) if fname == "ct_ik_joint_torque" else None
+            notes.append(
+                f"{label}: RMS error {show_beside(err * 1e3, RMS_TOL * 1e3)} mm, should be below 1 mm"
+                + (f" ({left} Take q1 = atan2(y, x) and the elbow-up branch at every point.)" if left else "")
+            )
     with np.printoptions(precision=3, suppress=True):
         where = f"one turn of a circle of radius {radius:.3f} m about {center}, normal {normal}"
     text = f"tracking ({where}): " + "; ".join(notes) + "."
