@@ -260,7 +260,7 @@ class SandboxProbe(Probe):
                 self._check_idle(idle, per_check)
             answer = self._answer(fd, nonce, wait=max(0.0, next_poll - time.monotonic()))
             if answer is not None:
-                cpu = self._server_cpu(answer)
+                cpu = self._server_cpu()
                 if per_check:
                     self.check_cpu_left -= max(0.0, cpu - self.cpu_seen)
                     self.check_idle_left -= idle
@@ -326,17 +326,16 @@ class SandboxProbe(Probe):
                 return answer
         return None
 
-    def _server_cpu(self, answer: dict) -> float:
+    def _server_cpu(self) -> float:
         """CPU time [s] the cell server has used so far, all its threads and its ended children
-        included, read by the judge from ``/proc``. The ``cpu`` the answer reports is used only
-        where ``/proc`` cannot be read (the server has just ended): the submission's code runs in
-        that process and can change what it reports (``time.process_time = lambda: 0.0``), so a
-        budget counted from it could be dodged."""
+        included, read by the judge from ``/proc``; where the server cannot be read (it has just
+        ended), the whole sandbox's, also from ``/proc``. Never a figure the sandbox reports: the
+        submission's code runs in that process and can change it (``time.process_time = lambda:
+        0.0``), so a budget counted from it could be dodged."""
         try:
             return _stat(self._server_pid())[1] / os.sysconf("SC_CLK_TCK")
         except (OSError, ValueError, IndexError):
-            reported = answer.get("cpu")
-            return max(self.cpu_seen, float(reported) if type(reported) in (int, float) else 0.0)
+            return max(self.cpu_seen, tree_cpu(self.proc.pid))
 
     def _server_pid(self) -> int:
         """The cell server: bubblewrap's grandchild (bubblewrap, its PID-1 init, the server), or the

@@ -19,9 +19,9 @@ Requests (each carries a ``nonce`` echoed in the answer):
 
 Limits count the process's own CPU time (``ITIMER_PROF``) and the time it spends waiting
 without being runnable (wall time minus CPU time minus time spent queued for a CPU, from
-``/proc/self/schedstat``): neither depends on how busy the machine is. Every answer carries
-``cpu``, the process's CPU time so far, for information: the student's code runs in this process
-and could change it, so the judge counts a check's budget from ``/proc`` itself. Values travel
+``/proc/self/schedstat``): neither depends on how busy the machine is. The judge counts a
+check's CPU budget from ``/proc`` itself, never from a figure this process could report: the
+student's code runs in it and could change that figure. Values travel
 as JSON (``{"none": true}``, ``{"array": [...], "shape": [...]}``, ``{"raised": "..."}``):
 nothing the student returns is ever unpickled by the grader.
 """
@@ -220,7 +220,6 @@ def main() -> None:
 
     def answer(nonce, payload):
         payload["nonce"] = nonce
-        payload["cpu"] = time.process_time()
         rpc_out.write(json.dumps(payload) + "\n")
         rpc_out.flush()
 

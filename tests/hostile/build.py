@@ -261,13 +261,15 @@ def ct_joint_torque(model, data, q_d, Kp, Kd):
 
 #: Slow in every call of a run (more CPU over the reach check than a check may use), and it hides
 #: that from any CPU figure the notebook's own process reports: only the judge's /proc reading counts.
+#: Each call of a run burns tens of milliseconds, so the reach check's 2,500 calls need several
+#: times the 30 s budget; the judge stops the check at 30 s, so the margin costs no time.
 LIES_ABOUT_CPU = r"""
 import time
 time.process_time = lambda: 0.0
 honest_ct = ct_joint_torque
 def ct_joint_torque(model, data, q_d, Kp, Kd):
     if data.time > 0:  # the test states of the p1_ct check are at t = 0; a run's steps are not
-        for _ in range(1_200_000):
+        for _ in range(4_000_000):
             pass
     return honest_ct(model, data, q_d, Kp, Kd)
 """
