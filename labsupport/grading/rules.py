@@ -80,8 +80,8 @@ def forbidden_message(qualified_name: str) -> str:
     """The plain-words reason a TODO that called ``qualified_name`` scores zero (short enough to
     survive the sandbox's 200-character error messages)."""
     return (
-        f"{qualified_name} {MARKER}: write it yourself from MuJoCo's M, h, J and J̇q̇ "
-        "(labsupport.dynamics). This TODO scores zero."
+        f"{qualified_name} {MARKER}: write it yourself with NumPy and MuJoCo (M, h, J and J̇q̇ "
+        "from labsupport.dynamics). This TODO scores zero."
     )
 
 
