@@ -561,8 +561,8 @@ def leaning_back(ik):
 
 def test_the_over_the_top_ik_is_named_in_both_problems(master1):
     """An IK that reaches every target leaning back over the shoulder gets zero in Problem 1 with
-    the reason (it is not the asked q1 = atan2(y, x)), and Problem 2's check of the law names it
-    instead of a bare torque mismatch."""
+    the reason (it is not the asked q1 = atan2(y, x)), and Problem 2's checks of the start and of
+    the law name it instead of a bare torque mismatch."""
     model, rng = common.arm_model(), np.random.default_rng(7)
     for up in (True, False) * 10:  # the pose is a right answer to the kinematics, on the side asked
         x = tip_at(model, common.draw_configuration(rng, up))
@@ -577,6 +577,8 @@ def test_the_over_the_top_ik_is_named_in_both_problems(master1):
 
     p2 = grade("p2_ikct", OTHER_SEED, ct_ik_joint_torque=ct_ik_joint_torque)
     assert p2.score == 0 and "the IK returns the over-the-top solution" in p2.message, p2
+    start = grade("p2_start", q0_traj=ik(problem2.reference(0.0).pos, elbow_up=True))
+    assert start.score == 0.5 and "the over-the-top pose" in start.message, start
 
 
 def test_an_ik_that_changes_branch_along_the_circle_is_named(master1, master2):

@@ -102,6 +102,14 @@ def check_start(probe: Probe, seed: int) -> Result:
     err = float(np.linalg.norm(tip(model, q0) - x0))
     with np.printoptions(precision=4, suppress=True):
         if err <= START_TOL:
+            if pan_turned_round(q0, x0):
+                return failed(
+                    name,
+                    "start: q0_traj puts the end effector on the start point, but with the pan half a turn from "
+                    "its azimuth (the over-the-top pose, the arm leaning back over its shoulder); the Problem "
+                    "starts facing the target, q1 = atan2(y, x).",
+                    0.5,
+                )
             if elbow_height(model, q0) <= 0:
                 return failed(
                     name,
