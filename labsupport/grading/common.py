@@ -152,10 +152,16 @@ def over_the_top(q) -> np.ndarray:
     return np.pi - (np.pi - flipped) % (2 * np.pi)
 
 
+def pan_error(q, x) -> float:
+    r"""How far the pan angle ``q[0]`` is from the azimuth ``atan2(y, x)`` of the point ``x``, in
+    :math:`[0, \pi]` rad (full turns ignored)."""
+    return abs((q[0] - np.arctan2(x[1], x[0]) + np.pi) % (2 * np.pi) - np.pi)
+
+
 def pan_turned_round(q, x) -> bool:
     """Whether the pan angle ``q[0]`` points the arm's plane away from the target ``x`` (its
     azimuth plus about half a turn) instead of at it: the over-the-top solution."""
-    return abs((q[0] - np.arctan2(x[1], x[0]) + np.pi) % (2 * np.pi) - np.pi) > np.pi / 2
+    return pan_error(q, x) > np.pi / 2
 
 
 def mirror_elbow(q) -> np.ndarray:

@@ -25,6 +25,7 @@ from labsupport.grading.common import (
     draw_configuration,
     elbow_height,
     judge_torque,
+    pan_error,
     pan_turned_round,
     rng_for,
     run_student,
@@ -87,8 +88,7 @@ def _ik_problem(model, q, x, up: bool) -> str | None:
                 "return them in radians (do not convert with np.degrees)"
             )
         azimuth = float(np.arctan2(x[1], x[0]))
-        pan_error = abs((q[0] - azimuth + np.pi) % (2 * np.pi) - np.pi)
-        if pan_error < 1e-3:
+        if pan_error(q, x) < 1e-3:
             return (
                 f"the pan angle is right, but the {_branch(up)} solution {q} puts the end effector "
                 f"{err:.4g} m from the target {x}: check the planar 2R solve for q2, q3"
