@@ -89,6 +89,11 @@ class Watch:
             raise CellTimeout()
 
 
+def _error_text(err: BaseException, limit: int = 300) -> str:
+    """An error as the sandbox reports it: its type's name, then its message cut to ``limit``."""
+    return f"{type(err).__name__}: {str(err)[:limit]}"
+
+
 class ThreadErrors:
     """Errors that ended threads a call started (``threading.excepthook``). A stub's
     off-limits message raised in a worker thread explains the call's failure better than the
@@ -99,7 +104,7 @@ class ThreadErrors:
         self.errors: list[str] = []
 
     def hook(self, args) -> None:
-        self.errors.append(f"{args.exc_type.__name__}: {str(args.exc_value)[:300]}")
+        self.errors.append(_error_text(args.exc_value))
 
     def instead_of(self, payload: dict) -> dict:
         """``payload``, or the first off-limits error a thread of the call raised."""
@@ -126,7 +131,7 @@ def _encode(value):
     except (TypeError, ValueError):
         return {"type": type(value).__name__}
     except Exception as err:  # the object's own __array__ or __float__ failed: say how
-        return {"raised": f"{type(err).__name__}: {str(err)[:300]}"}
+        return {"raised": _error_text(err)}
     if arr.size > MAX_ELEMENTS:
         return {"type": f"array of {arr.size} numbers (too large)"}
     return {"array": arr.ravel().tolist(), "shape": list(arr.shape)}  # NaN/inf travel as JSON NaN/Infinity
@@ -242,7 +247,7 @@ def main() -> None:
                     if isinstance(err, CellTimeout):
                         errors.append([k, f"timed out ({watch.reason})"])
                     elif err is not None:
-                        errors.append([k, f"{type(err).__name__}: {str(err)[:200]}"])
+                        errors.append([k, _error_text(err, 200)])
                 except CellTimeout:
                     errors.append([k, f"timed out ({watch.reason})"])
                 finally:
@@ -272,7 +277,7 @@ def main() -> None:
             except CellTimeout:
                 payload = {"timeout": watch.reason}
             except BaseException as err:  # the student's code may raise anything, SystemExit included
-                payload = thread_errors.instead_of({"raised": f"{type(err).__name__}: {str(err)[:300]}"})
+                payload = thread_errors.instead_of({"raised": _error_text(err)})
             finally:
                 watch.disarm()
                 thread_errors.clear()
