@@ -344,7 +344,12 @@ def test_fresh_seed_per_batch(tmp_path):
 
 
 def _busy_loops(n: int) -> list[subprocess.Popen]:
-    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
+    """``n`` processes that spin, each in a session of its own, as other users' programs would be.
+    In the test's own session they would load it alone: with the scheduler's autogroups
+    (``kernel.sched_autogroup_enabled``, on by default) a session's processes share one slice
+    of the CPUs, and each sandbox starts a session of its own, so it would still get a whole core."""
+    loop = [sys.executable, "-c", "while True: pass"]
+    return [subprocess.Popen(loop, start_new_session=True) for _ in range(n)]
 
 
 def test_same_scores_idle_and_under_full_load(tmp_path):
