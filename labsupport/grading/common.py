@@ -143,19 +143,23 @@ def draw_configuration(rng: np.random.Generator, elbow_up: bool = True, margins:
             return q
 
 
+def wrap_angle(angle):
+    r"""An angle (or an array of them) wrapped into :math:`(-\pi, \pi]` [rad]."""
+    return np.pi - (np.pi - angle) % (2 * np.pi)
+
+
 def over_the_top(q) -> np.ndarray:
     r"""The same tip reached with the pan half a turn round: :math:`q_1 \to q_1 + \pi`,
     :math:`q_2 \to -q_2`, :math:`q_3 \to -q_3 - \pi` (angles wrapped into :math:`(-\pi, \pi]`).
     The arm leans back over its shoulder, its elbow on the same side of the shoulder–tip line;
     it is not the Problem's solution, whose pan angle is the tip's azimuth."""
-    flipped = np.array([q[0] + np.pi, -q[1], -q[2] - np.pi])
-    return np.pi - (np.pi - flipped) % (2 * np.pi)
+    return wrap_angle(np.array([q[0] + np.pi, -q[1], -q[2] - np.pi]))
 
 
 def pan_error(q, x) -> float:
     r"""How far the pan angle ``q[0]`` is from the azimuth ``atan2(y, x)`` of the point ``x``, in
     :math:`[0, \pi]` rad (full turns ignored)."""
-    return abs((q[0] - np.arctan2(x[1], x[0]) + np.pi) % (2 * np.pi) - np.pi)
+    return abs(wrap_angle(q[0] - np.arctan2(x[1], x[0])))
 
 
 def pan_turned_round(q, x) -> bool:
