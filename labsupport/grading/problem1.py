@@ -65,11 +65,12 @@ def _branch(up: bool) -> str:
 def _ik_problem(model, q, x, up: bool) -> str | None:
     """What is wrong with ``q`` as the ``up`` branch's solution for target ``x`` (None if right)."""
     err = float(np.linalg.norm(tip(model, q) - x))
+    azimuth = float(np.arctan2(x[1], x[0]))
     if err <= IK_TOL:
         if pan_turned_round(q, x):
             return (
                 f"the {_branch(up)} call reaches the target, but its pan angle q1 = {q[0]:.4f} rad is half a "
-                f"turn from the target's azimuth atan2(y, x) = {float(np.arctan2(x[1], x[0])):.4f} rad: the arm "
+                f"turn from the target's azimuth atan2(y, x) = {azimuth:.4f} rad: the arm "
                 "leans back over its shoulder. That pose is another solution, not the one this Problem asks for, "
                 "and Problem 2's arm runs on the one facing the target: take q1 = atan2(y, x) (a numerical IK: "
                 "fix q1 there, or start from it, and solve for q2, q3)"
@@ -87,7 +88,6 @@ def _ik_problem(model, q, x, up: bool) -> str | None:
                 f"the angles {q} are in degrees: MuJoCo (and np.sin, np.cos) work in radians; "
                 "return them in radians (do not convert with np.degrees)"
             )
-        azimuth = float(np.arctan2(x[1], x[0]))
         if pan_error(q, x) < 1e-3:
             return (
                 f"the pan angle is right, but the {_branch(up)} solution {q} puts the end effector "
