@@ -9,15 +9,17 @@ then no rendering at all; simulation works in every case.
 from __future__ import annotations
 
 import ctypes.util
+import json
 import os
 import platform
 import sys
+from pathlib import Path
 
-#: Where glvnd looks for EGL vendor files; Colab's NVIDIA driver ships none.
-NVIDIA_EGL_VENDOR_FILE = "/usr/share/glvnd/egl_vendor.d/10_nvidia.json"
-_NVIDIA_EGL_VENDOR_JSON = (
-    '{\n  "file_format_version" : "1.0.0",\n  "ICD" : { "library_path" : "libEGL_nvidia.so.0" }\n}\n'
-)
+#: The folders where glvnd's libEGL reads its vendor files: JSON files that each name one
+#: driver's EGL library.
+GLVND_EGL_VENDOR_DIRS = ("/etc/glvnd/egl_vendor.d", "/usr/share/glvnd/egl_vendor.d")
+#: labsupport's own vendor file for NVIDIA's EGL library, for drivers that install none (Colab).
+NVIDIA_EGL_VENDOR_FILE = str(Path(__file__).with_name("nvidia_egl_vendor.json"))
 
 
 def on_linux() -> bool:
@@ -30,30 +32,36 @@ def display_open() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
-def on_colab() -> bool:
-    """True when running inside a Google Colab kernel."""
-    return "google.colab" in sys.modules
-
-
-def _has_nvidia_gpu() -> bool:
-    return os.path.exists("/dev/nvidia0") or os.path.exists("/proc/driver/nvidia/version")
-
-
-def install_nvidia_egl_vendor_file(path: str = NVIDIA_EGL_VENDOR_FILE) -> bool:
-    """Write the glvnd vendor file that lets EGL find NVIDIA's driver (Colab GPU runtimes).
-
-    Returns True when the file exists afterwards. Does nothing without an NVIDIA GPU.
-    """
-    if os.path.exists(path):
-        return True
-    if not _has_nvidia_gpu():
-        return False
+def _egl_library_of(vendor_file: Path) -> str:
     try:
-        os.makedirs(os.path.dirname(path), exist_ok=True)
-        with open(path, "w", encoding="utf-8") as f:
-            f.write(_NVIDIA_EGL_VENDOR_JSON)
-    except OSError:
+        return json.loads(vendor_file.read_text(encoding="utf-8"))["ICD"]["library_path"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return ""
+
+
+def list_nvidia_egl() -> bool:
+    """Let EGL find NVIDIA's driver where no glvnd vendor file names it (Colab's GPU runtimes).
+
+    glvnd's libEGL loads only the drivers that the vendor files in
+    :data:`GLVND_EGL_VENDOR_DIRS` name. Colab installs NVIDIA's ``libEGL_nvidia.so.0`` but no
+    vendor file for it, so EGL sees no GPU. Then this sets ``__EGL_VENDOR_LIBRARY_FILENAMES`` to
+    labsupport's NVIDIA file followed by the system's own files (so Mesa stays a fallback), for
+    this process and the processes it starts; nothing on the system is written. Returns True when
+    it set the variable. A machine without NVIDIA's EGL library, a system whose vendor files name
+    NVIDIA already, and a glvnd variable the user set are all left alone.
+    """
+    if "__EGL_VENDOR_LIBRARY_FILENAMES" in os.environ or "__EGL_VENDOR_LIBRARY_DIRS" in os.environ:
         return False
+    if not ctypes.util.find_library("EGL_nvidia"):
+        return False
+    system_files = sorted(
+        (f for folder in GLVND_EGL_VENDOR_DIRS for f in Path(folder).glob("*.json")), key=lambda f: f.name
+    )
+    if any("nvidia" in _egl_library_of(f).lower() for f in system_files):
+        return False
+    os.environ["__EGL_VENDOR_LIBRARY_FILENAMES"] = os.pathsep.join(
+        [NVIDIA_EGL_VENDOR_FILE, *(str(f) for f in system_files)]
+    )
     return True
 
 
@@ -125,11 +133,14 @@ def select_backend() -> str | None:
     else nothing: simulation still works and rendering raises a
     :class:`labsupport.render.RenderingUnavailable` that says what to install. On macOS and
     Windows nothing is set and MuJoCo's own default is in force (returned as ``"default"``).
+    On Linux, NVIDIA's EGL is first made visible to glvnd where no vendor file names it
+    (:func:`list_nvidia_egl`), also when the user set ``MUJOCO_GL=egl`` beforehand.
     Returns the backend in force, or None.
     """
     global last_choice
+    listed = " (NVIDIA's EGL listed by labsupport)" if on_linux() and list_nvidia_egl() else ""
     if "MUJOCO_GL" in os.environ:
-        last_choice = f"MUJOCO_GL={os.environ['MUJOCO_GL']} was set before labsupport was imported"
+        last_choice = f"MUJOCO_GL={os.environ['MUJOCO_GL']} was set before labsupport was imported{listed}"
         return os.environ["MUJOCO_GL"]
     if "mujoco" in sys.modules:
         last_choice = "mujoco was imported before labsupport, so MUJOCO_GL could not be chosen"
@@ -137,8 +148,6 @@ def select_backend() -> str | None:
     if not on_linux():
         last_choice = f"MuJoCo's default backend for {platform.system()} (MUJOCO_GL unset)"
         return "default"
-    if on_colab():
-        install_nvidia_egl_vendor_file()
     tried = []
     # (backend, whether it works here, PyOpenGL's platform for it, what to report if not)
     for backend, works, pyopengl, failed in (
@@ -150,10 +159,10 @@ def select_backend() -> str | None:
             os.environ["MUJOCO_GL"] = backend
             if pyopengl:
                 os.environ.setdefault("PYOPENGL_PLATFORM", pyopengl)
-            last_choice = f"MUJOCO_GL={backend} (tried first: {', '.join(tried) or 'nothing'})"
+            last_choice = f"MUJOCO_GL={backend} (tried first: {', '.join(tried) or 'nothing'}){listed}"
             return backend
         tried.append(failed)
-    last_choice = "no OpenGL backend works: " + ", ".join(tried)
+    last_choice = "no OpenGL backend works: " + ", ".join(tried) + listed
     return None
 
 

@@ -10,6 +10,7 @@ import os
 import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -182,13 +183,60 @@ def test_renderer_size_is_checked():
         render.make_renderer(model, width=4000, height=3000)
 
 
-def test_nvidia_vendor_file_is_written_only_with_a_gpu(tmp_path, monkeypatch):
-    path = tmp_path / "egl_vendor.d" / "10_nvidia.json"
-    monkeypatch.setattr(gl, "_has_nvidia_gpu", lambda: False)
-    assert gl.install_nvidia_egl_vendor_file(str(path)) is False and not path.exists()
-    monkeypatch.setattr(gl, "_has_nvidia_gpu", lambda: True)
-    assert gl.install_nvidia_egl_vendor_file(str(path)) is True
-    assert json.loads(path.read_text())["ICD"]["library_path"] == "libEGL_nvidia.so.0"
+@pytest.fixture
+def glvnd(tmp_path, monkeypatch):
+    """A system vendor folder holding Mesa's file only, NVIDIA's EGL library installed, and no
+    glvnd variable set (all restored after)."""
+    folder = tmp_path / "egl_vendor.d"
+    folder.mkdir()
+    (folder / "50_mesa.json").write_text('{"ICD": {"library_path": "libEGL_mesa.so.0"}}')
+    monkeypatch.setattr(gl, "GLVND_EGL_VENDOR_DIRS", (str(tmp_path / "absent"), str(folder)))
+    monkeypatch.setattr(gl.ctypes.util, "find_library", lambda name: f"lib{name}.so.0")
+    monkeypatch.delenv("__EGL_VENDOR_LIBRARY_FILENAMES", raising=False)
+    monkeypatch.delenv("__EGL_VENDOR_LIBRARY_DIRS", raising=False)
+    return folder
+
+
+def test_nvidia_egl_is_listed_first_where_no_vendor_file_names_it(glvnd):
+    """Colab's GPU runtime: NVIDIA's library is there, but only Mesa's vendor file."""
+    assert gl.list_nvidia_egl() is True
+    listed = os.environ["__EGL_VENDOR_LIBRARY_FILENAMES"].split(os.pathsep)
+    assert listed == [gl.NVIDIA_EGL_VENDOR_FILE, str(glvnd / "50_mesa.json")]
+    vendor = json.loads(open(gl.NVIDIA_EGL_VENDOR_FILE, encoding="utf-8").read())
+    assert vendor["ICD"]["library_path"] == "libEGL_nvidia.so.0" and vendor["file_format_version"] == "1.0.0"
+
+
+def test_nvidia_egl_listing_leaves_every_other_machine_alone(glvnd, monkeypatch):
+    (glvnd / "10_nvidia.json").write_text('{"ICD": {"library_path": "libEGL_nvidia.so.0"}}')
+    assert gl.list_nvidia_egl() is False  # the system names NVIDIA already
+    (glvnd / "10_nvidia.json").unlink()
+    monkeypatch.setenv("__EGL_VENDOR_LIBRARY_FILENAMES", "/the/users/own.json")
+    assert gl.list_nvidia_egl() is False  # the user's own choice
+    assert os.environ["__EGL_VENDOR_LIBRARY_FILENAMES"] == "/the/users/own.json"
+    monkeypatch.delenv("__EGL_VENDOR_LIBRARY_FILENAMES")
+    monkeypatch.setattr(gl.ctypes.util, "find_library", lambda name: None)
+    assert gl.list_nvidia_egl() is False  # no NVIDIA driver
+    assert "__EGL_VENDOR_LIBRARY_FILENAMES" not in os.environ
+
+
+def test_a_user_choice_of_egl_still_gets_nvidias_egl_listed(glvnd, fresh_backend_choice):
+    fresh_backend_choice.setenv("MUJOCO_GL", "egl")
+    fresh_backend_choice.setattr(gl, "on_linux", lambda: True)
+    assert gl.select_backend() == "egl"
+    assert "NVIDIA's EGL listed by labsupport" in gl.last_choice
+    assert os.environ["__EGL_VENDOR_LIBRARY_FILENAMES"].startswith(gl.NVIDIA_EGL_VENDOR_FILE)
+
+
+@pytest.mark.skipif(not gl.egl_works(), reason="EGL cannot open a display on this machine")
+def test_a_listed_nvidia_library_that_cannot_load_leaves_mesa_rendering(tmp_path):
+    """Where the NVIDIA file is listed but its library is missing (no driver), glvnd skips it and
+    the system's own vendors still render."""
+    system = [str(f) for folder in gl.GLVND_EGL_VENDOR_DIRS for f in sorted(Path(folder).glob("*.json"))]
+    result, frames = _render_in_subprocess(
+        tmp_path, __EGL_VENDOR_LIBRARY_FILENAMES=os.pathsep.join([gl.NVIDIA_EGL_VENDOR_FILE, *system])
+    )
+    assert result["backend"] == "egl", result
+    _assert_real_frames(frames)
 
 
 def test_video_has_a_text_alternative():
