@@ -39,12 +39,41 @@ INSTALL_HINT = (
     "anything imports mujoco. The simulation results do not need a video."
 )
 
+FFMPEG_HINT = (
+    "Encoding the video needs the ffmpeg program, which was not found. From the notebook, "
+    "`%pip install imageio-ffmpeg` brings one for any system (labsupport finds it without a kernel "
+    "restart); or install ffmpeg itself (`sudo apt-get install ffmpeg`, `brew install ffmpeg`, "
+    "`conda install ffmpeg`, `winget install ffmpeg`) and restart the kernel. "
+    "The simulation results do not need a video."
+)
+
 
 _ZERO3, _ZERO9 = np.zeros(3), np.zeros(9)
 
 
 class RenderingUnavailable(RuntimeError):
-    """No OpenGL backend could create an offscreen context; the message says what to install."""
+    """No video can be made here: no OpenGL backend could create an offscreen context, or no
+    ffmpeg can encode the frames; the message says what to install."""
+
+
+def require_ffmpeg() -> None:
+    """Make sure mediapy can encode video, else raise :class:`RenderingUnavailable` saying how.
+
+    ffmpeg is looked for where mediapy looks (the PATH, or what ``mediapy.set_ffmpeg`` named),
+    then in the optional package ``imageio-ffmpeg``, which mediapy is then pointed at. That
+    package is imported here rather than at the top, so that installing it from a running
+    notebook is enough.
+    """
+    if mediapy.video_is_available():
+        return
+    try:
+        import imageio_ffmpeg  # optional, and may be installed after labsupport was imported
+
+        mediapy.set_ffmpeg(imageio_ffmpeg.get_ffmpeg_exe())
+    except (ImportError, RuntimeError):
+        pass
+    if not mediapy.video_is_available():
+        raise RenderingUnavailable(FFMPEG_HINT)
 
 
 def make_renderer(model: mujoco.MjModel, width: int = 320, height: int = 240) -> mujoco.Renderer:
@@ -266,6 +295,7 @@ def video_html(
     """
     text = escape(text_alternative(description, "a video"))
     frames = np.asarray(frames)
+    require_ffmpeg()
     data = mediapy.compress_video(frames, fps=fps, qp=qp)
     html = mediapy.html_from_compressed_video(data, frames.shape[2], frames.shape[1], title=title, autoplay=False)
     html = html.replace("<video ", f'<video aria-label="{text}" ', 1)
@@ -276,8 +306,14 @@ def video_html(
 def show_video(
     frames: np.ndarray, fps: float, title: str | None = None, description: str | None = None, qp: int = 30
 ) -> None:
-    """Show frames inline as an MP4 video with its text alternative (see :func:`video_html`)."""
-    IPython.display.display(IPython.display.HTML(video_html(frames, fps, title, description, qp)))
+    """Show frames inline as an MP4 video with its text alternative (see :func:`video_html`);
+    without ffmpeg print why, and the text alternative, instead."""
+    try:
+        html = video_html(frames, fps, title, description, qp)
+    except RenderingUnavailable as err:
+        _no_video(err, description)
+        return
+    IPython.display.display(IPython.display.HTML(html))
 
 
 def show_run_video(
@@ -291,12 +327,18 @@ def show_run_video(
 ) -> np.ndarray | None:
     """Render ``log`` (see :func:`render_run`, which takes the same ``options``) and show it with
     its text alternative ``description`` (checked before the rendering starts); without a
-    working OpenGL backend print why (and the description) and return None."""
+    working OpenGL backend or ffmpeg (looked for first) print why, and the description, and
+    return None."""
     description = text_alternative(description, "a video")
     try:
+        require_ffmpeg()
         frames = render_run(model, log, fps=fps, **options)
     except RenderingUnavailable as err:
-        print(f"(No video: {err}) {description}")
+        _no_video(err, description)
         return None
     show_video(frames, fps, title, description)
     return frames
+
+
+def _no_video(err: RenderingUnavailable, description: str) -> None:
+    print(f"(No video: {err}) {description}")

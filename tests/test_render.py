@@ -8,10 +8,13 @@ import dataclasses
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
+import types
 from pathlib import Path
 
+import mediapy
 import numpy as np
 import pytest
 
@@ -325,3 +328,40 @@ def test_every_arm_renders_with_the_defaults(tmp_path):
         assert frame["site"] == (-1 if name.endswith("without site") else 0), name
         assert (frame["red"] > 60) == (frame["site"] == 0), (name, frame)
         assert (frame["blue"] > 20) == name.endswith("with reference"), (name, frame)
+
+
+@pytest.fixture
+def no_ffmpeg(monkeypatch):
+    """mediapy finds no ffmpeg and imageio-ffmpeg is not installed (mediapy's choice restored after)."""
+    mediapy.set_ffmpeg("no-such-ffmpeg-program")
+    monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)  # import fails
+    yield
+    mediapy.set_ffmpeg("ffmpeg")
+
+
+@pytest.mark.skipif(shutil.which("ffmpeg") is None, reason="ffmpeg is not installed")
+def test_without_ffmpeg_the_videos_say_how_to_get_it_and_the_notebook_goes_on(no_ffmpeg, monkeypatch, capsys):
+    frames = np.zeros((4, 48, 64, 3), dtype=np.uint8)
+    with pytest.raises(render.RenderingUnavailable, match=r"ffmpeg.*%pip install imageio-ffmpeg"):
+        render.video_html(frames, fps=4, description="A still arm, in four frames.")
+    shown = []
+    monkeypatch.setattr(render.IPython.display, "display", shown.append)
+    assert render.show_video(frames, 4, description="A still arm, in four frames.") is None
+    monkeypatch.setattr(render, "render_run", lambda *a, **k: pytest.fail("rendered with no way to encode"))
+    assert render.show_run_video(None, None, description="The arm reaches its target point.") is None
+    printed = capsys.readouterr().out.splitlines()
+    assert shown == [] and len(printed) == 2
+    assert printed[0].startswith("(No video: Encoding the video needs the ffmpeg program")
+    assert printed[0].endswith(") A still arm, in four frames.") and printed[1].endswith(
+        ") The arm reaches its target point."
+    )
+
+
+@pytest.mark.skipif(shutil.which("ffmpeg") is None, reason="ffmpeg is not installed")
+def test_the_ffmpeg_of_imageio_ffmpeg_is_used_when_none_is_on_the_path(no_ffmpeg, monkeypatch):
+    bundled = shutil.which("ffmpeg")  # stands in for the program that imageio-ffmpeg ships
+    monkeypatch.setitem(sys.modules, "imageio_ffmpeg", types.SimpleNamespace(get_ffmpeg_exe=lambda: bundled))
+    frames = np.random.default_rng(1).integers(0, 255, (4, 48, 64, 3), dtype=np.uint8)
+    html = render.video_html(frames, fps=4, description="Random noise, in four small frames.")
+    assert 'type="video/mp4"' in html
+    assert mediapy.video_is_available() and mediapy._config.ffmpeg_name_or_path == bundled
