@@ -120,11 +120,19 @@ def test_no_backend_at_all_is_explained(monkeypatch):
         render.make_renderer(model)
 
 
+def unset_env(monkeypatch, *names: str) -> None:
+    """Remove environment variables for one test, and remove them again after it even where the
+    code under test sets them (``delenv`` alone records nothing for an absent variable, so a
+    variable set by the test would leak into every later test of the process)."""
+    for name in names:
+        monkeypatch.setenv(name, "")
+        monkeypatch.delenv(name)
+
+
 @pytest.fixture
 def fresh_backend_choice(monkeypatch):
     """select_backend as on a first import: no MUJOCO_GL, mujoco not imported (restored after)."""
-    monkeypatch.delenv("MUJOCO_GL", raising=False)
-    monkeypatch.delenv("PYOPENGL_PLATFORM", raising=False)
+    unset_env(monkeypatch, "MUJOCO_GL", "PYOPENGL_PLATFORM")
     monkeypatch.delitem(sys.modules, "mujoco", raising=False)
     monkeypatch.setattr(gl, "last_choice", gl.last_choice)
     return monkeypatch
@@ -195,8 +203,7 @@ def glvnd(tmp_path, monkeypatch):
     (folder / "50_mesa.json").write_text('{"ICD": {"library_path": "libEGL_mesa.so.0"}}')
     monkeypatch.setattr(gl, "GLVND_EGL_VENDOR_DIRS", (str(tmp_path / "absent"), str(folder)))
     monkeypatch.setattr(gl.ctypes.util, "find_library", lambda name: f"lib{name}.so.0")
-    monkeypatch.delenv("__EGL_VENDOR_LIBRARY_FILENAMES", raising=False)
-    monkeypatch.delenv("__EGL_VENDOR_LIBRARY_DIRS", raising=False)
+    unset_env(monkeypatch, "__EGL_VENDOR_LIBRARY_FILENAMES", "__EGL_VENDOR_LIBRARY_DIRS")
     return folder
 
 
