@@ -18,7 +18,9 @@ from pathlib import Path
 #: The folders where glvnd's libEGL reads its vendor files: JSON files that each name one
 #: driver's EGL library.
 GLVND_EGL_VENDOR_DIRS = ("/etc/glvnd/egl_vendor.d", "/usr/share/glvnd/egl_vendor.d")
-#: labsupport's own vendor file for NVIDIA's EGL library, for drivers that install none (Colab).
+#: NVIDIA's EGL library, as glvnd loads it (``dlopen``: the loader's cache and ``LD_LIBRARY_PATH``).
+NVIDIA_EGL_LIBRARY = "libEGL_nvidia.so.0"
+#: labsupport's own vendor file naming :data:`NVIDIA_EGL_LIBRARY`, for drivers that install none (Colab).
 NVIDIA_EGL_VENDOR_FILE = str(Path(__file__).with_name("nvidia_egl_vendor.json"))
 
 
@@ -39,20 +41,30 @@ def _egl_library_of(vendor_file: Path) -> str:
         return ""
 
 
+def library_loads(name: str) -> bool:
+    """True when the shared library ``name`` loads, found the way ``dlopen`` finds it."""
+    try:
+        ctypes.CDLL(name)
+    except OSError:
+        return False
+    return True
+
+
 def list_nvidia_egl() -> bool:
     """Let EGL find NVIDIA's driver where no glvnd vendor file names it (Colab's GPU runtimes).
 
     glvnd's libEGL loads only the drivers that the vendor files in
-    :data:`GLVND_EGL_VENDOR_DIRS` name. Colab installs NVIDIA's ``libEGL_nvidia.so.0`` but no
-    vendor file for it, so EGL sees no GPU. Then this sets ``__EGL_VENDOR_LIBRARY_FILENAMES`` to
-    labsupport's NVIDIA file followed by the system's own files (so Mesa stays a fallback), for
-    this process and the processes it starts; nothing on the system is written. Returns True when
-    it set the variable. A machine without NVIDIA's EGL library, a system whose vendor files name
-    NVIDIA already, and a glvnd variable the user set are all left alone.
+    :data:`GLVND_EGL_VENDOR_DIRS` name. Colab installs NVIDIA's ``libEGL_nvidia.so.0`` (on its
+    ``LD_LIBRARY_PATH``) but no vendor file for it, so EGL sees no GPU. Then this sets
+    ``__EGL_VENDOR_LIBRARY_FILENAMES`` to labsupport's NVIDIA file followed by the system's own
+    files (so Mesa stays a fallback), for this process and the processes it starts; nothing on
+    the system is written. Returns True when it set the variable. A machine where NVIDIA's EGL
+    library does not load, a system whose vendor files name NVIDIA already, and a glvnd variable
+    the user set are all left alone.
     """
     if "__EGL_VENDOR_LIBRARY_FILENAMES" in os.environ or "__EGL_VENDOR_LIBRARY_DIRS" in os.environ:
         return False
-    if not ctypes.util.find_library("EGL_nvidia"):
+    if not library_loads(NVIDIA_EGL_LIBRARY):
         return False
     system_files = sorted(
         (f for folder in GLVND_EGL_VENDOR_DIRS for f in Path(folder).glob("*.json")), key=lambda f: f.name

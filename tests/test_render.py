@@ -4,6 +4,7 @@ Each case runs in a fresh interpreter, because MuJoCo reads ``MUJOCO_GL`` once, 
 first imported.
 """
 
+import ctypes.util
 import dataclasses
 import json
 import os
@@ -202,7 +203,7 @@ def glvnd(tmp_path, monkeypatch):
     folder.mkdir()
     (folder / "50_mesa.json").write_text('{"ICD": {"library_path": "libEGL_mesa.so.0"}}')
     monkeypatch.setattr(gl, "GLVND_EGL_VENDOR_DIRS", (str(tmp_path / "absent"), str(folder)))
-    monkeypatch.setattr(gl.ctypes.util, "find_library", lambda name: f"lib{name}.so.0")
+    monkeypatch.setattr(gl, "library_loads", lambda name: name == gl.NVIDIA_EGL_LIBRARY)
     unset_env(monkeypatch, "__EGL_VENDOR_LIBRARY_FILENAMES", "__EGL_VENDOR_LIBRARY_DIRS")
     return folder
 
@@ -213,7 +214,8 @@ def test_nvidia_egl_is_listed_first_where_no_vendor_file_names_it(glvnd):
     listed = os.environ["__EGL_VENDOR_LIBRARY_FILENAMES"].split(os.pathsep)
     assert listed == [gl.NVIDIA_EGL_VENDOR_FILE, str(glvnd / "50_mesa.json")]
     vendor = json.loads(open(gl.NVIDIA_EGL_VENDOR_FILE, encoding="utf-8").read())
-    assert vendor["ICD"]["library_path"] == "libEGL_nvidia.so.0" and vendor["file_format_version"] == "1.0.0"
+    assert vendor["ICD"]["library_path"] == gl.NVIDIA_EGL_LIBRARY == "libEGL_nvidia.so.0"
+    assert vendor["file_format_version"] == "1.0.0"
 
 
 def test_nvidia_egl_listing_leaves_every_other_machine_alone(glvnd, monkeypatch):
@@ -224,9 +226,27 @@ def test_nvidia_egl_listing_leaves_every_other_machine_alone(glvnd, monkeypatch)
     assert gl.list_nvidia_egl() is False  # the user's own choice
     assert os.environ["__EGL_VENDOR_LIBRARY_FILENAMES"] == "/the/users/own.json"
     monkeypatch.delenv("__EGL_VENDOR_LIBRARY_FILENAMES")
-    monkeypatch.setattr(gl.ctypes.util, "find_library", lambda name: None)
+    monkeypatch.setattr(gl, "library_loads", lambda name: False)
     assert gl.list_nvidia_egl() is False  # no NVIDIA driver
     assert "__EGL_VENDOR_LIBRARY_FILENAMES" not in os.environ
+
+
+def test_nvidias_library_is_found_on_the_library_path_as_colab_installs_it(tmp_path):
+    """Colab puts the driver's libraries in a folder of ``LD_LIBRARY_PATH``, with no unversioned
+    ``.so`` and no entry in the loader's cache: what glvnd's ``dlopen`` finds must count."""
+    libc = ctypes.util.find_library("c")
+    found = subprocess.run(["ldconfig", "-p"], capture_output=True, text=True).stdout
+    path = re.search(rf"{re.escape(libc)} \(libc6,x86-64\) => (\S+)", found)
+    if path is None:
+        pytest.skip("no x86-64 libc in the loader's cache to stand in for NVIDIA's library")
+    shutil.copy(path.group(1), tmp_path / gl.NVIDIA_EGL_LIBRARY)  # a library that loads, by that name
+    probe = "from labsupport import gl; print(gl.library_loads(gl.NVIDIA_EGL_LIBRARY))"
+    env = dict(os.environ, LD_LIBRARY_PATH=str(tmp_path))
+    run = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=120)
+    assert run.stdout.split() == ["True"], run.stderr
+    env.pop("LD_LIBRARY_PATH")
+    run = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=120)
+    assert run.stdout.split() == ["False"], run.stderr
 
 
 def test_a_user_choice_of_egl_still_gets_nvidias_egl_listed(glvnd, fresh_backend_choice):
