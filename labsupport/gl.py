@@ -64,12 +64,12 @@ def list_nvidia_egl() -> bool:
     """
     if "__EGL_VENDOR_LIBRARY_FILENAMES" in os.environ or "__EGL_VENDOR_LIBRARY_DIRS" in os.environ:
         return False
-    if not library_loads(NVIDIA_EGL_LIBRARY):
-        return False
     system_files = sorted(
         (f for folder in GLVND_EGL_VENDOR_DIRS for f in Path(folder).glob("*.json")), key=lambda f: f.name
     )
     if any("nvidia" in _egl_library_of(f).lower() for f in system_files):
+        return False
+    if not library_loads(NVIDIA_EGL_LIBRARY):
         return False
     os.environ["__EGL_VENDOR_LIBRARY_FILENAMES"] = os.pathsep.join(
         [NVIDIA_EGL_VENDOR_FILE, *(str(f) for f in system_files)]
