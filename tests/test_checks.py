@@ -35,6 +35,7 @@ from labsupport.grading.feedback import (
 from labsupport.grading.stability import stiff_damping
 from labsupport.kinematics.planar_2r import Planar2R
 from labsupport.kinematics.planar_2r import inverse_kinematics as planar_ik
+from labsupport.trajectories import circle_3d
 
 ROOT = Path(__file__).resolve().parents[1]
 OTHER_SEED = 918273
@@ -843,7 +844,7 @@ def test_pd_divergence_near_the_folded_arm_is_explained(master1, tmp_path, monke
     text = stiff_damping(model, lambda m, d: pd(m, d, folded, 400.0, 50.0), folded, np.zeros(3))
     M11 = mass_matrix(model, common.data_at(model, folded))[0, 0]
     assert M11 == pytest.approx(0.003)
-    assert "not a sign error" in text and f"{50 * 0.002 / M11:.3g}" in text and "pan joint 1" in text
+    assert "too stiff for the time step" in text and f"{50 * 0.002 / M11:.3g}" in text and "pan joint 1" in text
     assert "smaller time step" in text and "lower Kd" in text
     assert (
         stiff_damping(model, lambda m, d: master1["ct_joint_torque"](m, d, folded, 100.0, 18.0), folded, np.zeros(3))
@@ -851,7 +852,7 @@ def test_pd_divergence_near_the_folded_arm_is_explained(master1, tmp_path, monke
     )
 
     probe = DirectProbe({"pd_torque": pd})
-    with pytest.raises(Exception, match="not a sign error.*Kd·Δt/M"):
+    with pytest.raises(Exception, match="too stiff for the time step.*Kd·Δt/M"):
         common.run_student(probe, "pd_torque", (np.array([0.8, 0.1, 1.5]), 400.0, 50.0), 2.0, problem1.Q0)
     assert not (tmp_path / "MUJOCO_LOG.TXT").exists()  # the loop took MuJoCo's warnings itself
 
@@ -876,7 +877,107 @@ def test_a_law_that_is_itself_unstable_is_not_blamed_on_the_time_step(wrong, tmp
     probe = DirectProbe({"ct_joint_torque": ct})
     with pytest.raises(StudentError) as err:
         common.run_student(probe, "ct_joint_torque", (np.array([0.8, 0.1, 1.5]), 100.0, 18.0), 2.0, problem1.Q0)
-    assert "check the signs" in str(err.value) and "not a sign error" not in str(err.value)
+    assert "check the signs" in str(err.value) and "too stiff" not in str(err.value)
+
+
+def ct_law(inertia_term):
+    """Joint computed torque with ``inertia_term(M, v)`` standing for ``M @ v``."""
+
+    def ct(model, data, q_d, Kp, Kd):
+        return inertia_term(mass_matrix(model, data), Kp * (q_d - data.qpos) - Kd * data.qvel) + data.qfrc_bias
+
+    return ct
+
+
+def test_a_law_that_inverts_the_mass_matrix_is_named_and_not_blamed_on_the_time_step(tmp_path, monkeypatch):
+    """``np.linalg.solve(M, v)`` where ``M @ v`` belongs: the closed loop's damping is M⁻¹Kd, whose
+    fastest pole at the arm's small inertias is far beyond RK4's limit. The message names the
+    mistake and the Kd the student passed, not a time step to shrink."""
+    monkeypatch.chdir(tmp_path)
+    probe = DirectProbe({"ct_joint_torque": ct_law(np.linalg.solve)})
+    with pytest.raises(StudentError) as err:
+        common.run_student(probe, "ct_joint_torque", (np.array([0.5, 0.6, 0.4]), 100.0, 18.0), 2.0, problem1.Q0)
+    text = str(err.value)
+    assert "M(q)⁻¹·Kd with Kd = 18," in text and "np.linalg.solve(M, v) is M⁻¹v" in text
+    assert "too stiff" not in text
+
+
+def test_a_computed_torque_with_too_large_a_kd_is_told_its_own_limit():
+    """Computed torque's velocity poles are Kd itself: Kd·Δt above RK4's 2.785 diverges whatever
+    the inertia, and the limit told is 2.785 / Δt."""
+    model = common.arm_model()
+    folded = np.array([0.0, 0.0, np.pi / 2])
+    ct = ct_law(np.matmul)
+    assert stiff_damping(model, lambda m, d: ct(m, d, folded, 100.0, 1300.0), folded, np.zeros(3)) is None
+    text = stiff_damping(model, lambda m, d: ct(m, d, folded, 100.0, 2000.0), folded, np.array([0.3, -0.2, 0.5]))
+    assert "M(q)·Kd with Kd = 2000 1/s" in text and "λ·Δt = 4 is above the 2.785" in text
+    assert f"below {2.785 / 0.002:.3g} 1/s" in text
+
+
+def test_an_operational_space_spring_of_the_wrong_sign_is_not_blamed_on_the_time_step(tmp_path, monkeypatch):
+    """Kp (x − x_d) instead of Kp (x_d − x): the arm drifts off the circle and runs away, fast, where
+    the change of J⁻¹ and J̇q̇ with the speeds looks like a huge damping; and the bias forces'
+    change with the speeds would too if they were not taken out of the law's damping (they cancel
+    the arm's own). Neither may be told to the student as a time step too large."""
+    monkeypatch.chdir(tmp_path)
+    center, radius, normal, q0, qdot0 = problem2.tracking_circle(PUBLIC_SEED)
+
+    def args(t):
+        r = circle_3d(t, center, radius, normal, problem2.FREQUENCY)
+        return r.pos, r.vel, r.acc, problem2.KP, problem2.KD
+
+    def os_ct_spring_sign(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        J = site_jacobian(model, data, "end_effector")[:3]
+        x = data.site("end_effector").xpos
+        a = xdd_d + Kd * (xd_d - J @ data.qvel) + Kp * (x - x_d) - site_jdot_qdot(model, data, "end_effector")[:3]
+        return mass_matrix(model, data) @ np.linalg.solve(J, a) + data.qfrc_bias
+
+    probe = DirectProbe({"ct_op_torque": os_ct_spring_sign})
+    with pytest.raises(StudentError) as err:
+        common.run_student(probe, "ct_op_torque", args, problem2.TRACK_DURATION, q0, qdot0)
+    assert "check the signs" in str(err.value) and "too stiff" not in str(err.value)
+    assert "λ" not in str(err.value)
+
+
+def test_the_notebooks_own_run_of_a_wrong_spring_is_not_blamed_on_the_time_step(tmp_path, monkeypatch, capsys):
+    """The same mistake in the notebook's own run (the lab's circle, from rest): the message once
+    said "this is not a sign error" with Kd·Δt/M = 0.0443 "above" 2.785."""
+    from labsupport.grading import as_controller, attempt
+    from labsupport.plants import load_model
+    from labsupport.sim import simulate
+
+    monkeypatch.chdir(tmp_path)
+    model, data = load_model("spatial_3r")
+
+    def reference(t):
+        return circle_3d(t, np.array([1.0, 0.0, 1.5]), 0.3, np.array([0.0, 0.0, 1.0]), 0.2)
+
+    def reference_and_gains(t):
+        r = reference(t)
+        return r.pos, r.vel, r.acc, 64.0, 16.0
+
+    def os_ct_spring_sign(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        J = site_jacobian(model, data, "end_effector")[:3]
+        x = data.site("end_effector").xpos
+        a = xdd_d + Kd * (xd_d - J @ data.qvel) + Kp * (x - x_d) - site_jdot_qdot(model, data, "end_effector")[:3]
+        return mass_matrix(model, data) @ np.linalg.solve(J, a) + data.qfrc_bias
+
+    x0 = reference(0.0).pos  # elbow up, facing the target: the law of cosines in the arm's plane
+    rho, h = np.hypot(x0[0], x0[1]), x0[2] - 1.0
+    c = (rho**2 + h**2 - 2.0) / 2.0
+    q0 = np.array(
+        [
+            np.arctan2(x0[1], x0[0]),
+            np.arctan2(rho, h) - np.arctan2(np.sin(np.arccos(c)), 1 + c),
+            np.arccos(c) - np.pi / 2,
+        ]
+    )
+    assert np.allclose(common.tip(model, q0), reference(0.0).pos)
+    ctrl = as_controller(os_ct_spring_sign, reference_and_gains)
+    log = attempt("OS-CT", lambda: simulate(model, data, ctrl, 10.0, q0=q0, site="end_effector"), ctrl, model)
+    said = capsys.readouterr().out
+    assert log is None and "diverged" in said and "check the signs" in said
+    assert "too stiff" not in said and "not a sign error" not in said
 
 
 # --- what a student installs holds no answer ------------------------------------------------------------

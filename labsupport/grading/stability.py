@@ -11,9 +11,12 @@ A run can diverge for two different reasons, and the cure differs:
   Problem 1's PD at the lab's gains hits this near the folded arm, where the pan inertia falls
   to about 0.004 kg·m².
 
-:func:`explain_divergence` tells them apart from the controller's own effective damping
-:math:`D = -\partial\tau/\partial\dot q` (finite differences of the student's torque) at the
-last good state: the fastest velocity pole is the largest eigenvalue of :math:`M^{-1}D`.
+:func:`explain_divergence` tells them apart from the closed loop's damping
+:math:`D = -\partial(\tau - h)/\partial\dot q` (finite differences of the student's torque) at
+the states before the divergence: the fastest velocity pole is the largest eigenvalue of
+:math:`M^{-1}D`. The shape of :math:`D` says which words fit: the same :math:`K_d` on every
+joint (PD), :math:`M K_d` (computed torque), or a law that inverts :math:`M` where it should
+multiply by it, which no time step cures.
 """
 
 from __future__ import annotations
@@ -37,8 +40,14 @@ _JOINT_NAMES = ("pan joint 1", "joint 2", "joint 3")
 def effective_damping(
     model: mujoco.MjModel, torque: Callable, q, qdot, t: float = 0.0, step: float = 1e-4
 ) -> tuple[np.ndarray, np.ndarray]:
-    r"""The controller's damping :math:`D = -\partial\tau/\partial\dot q` (central differences) and
-    :math:`M(q)` at a state.
+    r"""The closed loop's damping :math:`D = -\partial(\tau - h)/\partial\dot q` (central
+    differences) and :math:`M(q)` at a state.
+
+    The arm obeys :math:`M\ddot q = \tau - h(q,\dot q)`, so what decides how fast the joint
+    velocities decay is the controller's torque less the bias forces: a computed torque's
+    :math:`+h` cancels the arm's own, and its damping is :math:`M K_d` at any speed, while
+    :math:`-\partial\tau/\partial\dot q` alone would count the Coriolis forces of a fast motion
+    as damping.
 
     Args:
         torque: ``torque(model, data) -> tau``, the controller.
@@ -48,16 +57,29 @@ def effective_damping(
     nv = model.nv
     D = np.empty((nv, nv))
     for j in range(nv):
-        taus = []
+        pulls = []
         for sign in (1.0, -1.0):
             data.qvel[:] = qdot
             data.qvel[j] += sign * step
             mujoco.mj_forward(model, data)
-            taus.append(np.asarray(torque(model, data), dtype=float).copy())
-        D[:, j] = -(taus[0] - taus[1]) / (2 * step)
+            tau = np.asarray(torque(model, data), dtype=float)
+            pulls.append(tau - data.qfrc_bias + data.qfrc_passive)
+        D[:, j] = -(pulls[0] - pulls[1]) / (2 * step)
     data.qvel[:] = qdot
     mujoco.mj_forward(model, data)
     return D, mass_matrix(model, data)
+
+
+def fastest_velocity_pole(D: np.ndarray, M: np.ndarray) -> float:
+    r"""The largest real part of the eigenvalues of :math:`M^{-1}D`: the rate [1/s] at which the
+    fastest combination of joint velocities decays under the damping :math:`D`."""
+    return float(np.max(np.real(np.linalg.eigvals(np.linalg.solve(M, D)))))
+
+
+def multiple_of(X: np.ndarray, B: np.ndarray, rtol: float = 0.05) -> float | None:
+    r"""The number :math:`c` with :math:`X = c\,B` within ``rtol`` (in the Frobenius norm), or None."""
+    c = float(np.sum(X * B) / np.sum(B * B))
+    return c if np.linalg.norm(X - c * B) <= rtol * np.linalg.norm(X) else None
 
 
 class Trace:
@@ -72,9 +94,24 @@ class Trace:
         self.states.append((data.qpos.copy(), data.qvel.copy(), float(data.time)))
 
 
+#: What to do about a damping that is right but too stiff for the time step.
+_REMEDIES = (
+    "clipping or saturating the torque, or implicit damping (MuJoCo's joint damping with the implicitfast integrator)."
+)
+
+
 def stiff_damping(model: mujoco.MjModel, torque: Callable, q, qdot, t: float = 0.0) -> str | None:
     r"""If the controller's damping at this state is too stiff for the integrator at this time
     step, say so with the numbers and what to do; ``None`` if it is not.
+
+    The verdict is the fastest velocity pole :math:`\lambda` (:func:`fastest_velocity_pole`):
+    too stiff when :math:`\lambda\Delta t` exceeds the integrator's limit. The words depend on the
+    damping's shape, found from :math:`D` itself: the same :math:`K_d` on every joint (PD: too
+    stiff where a joint's inertia is small), :math:`M K_d` (computed torque: :math:`K_d` itself
+    too large) or :math:`M^{-1}K_d` (the mass matrix inverted where it should multiply). A
+    damping of none of these shapes gets ``None``: at the fast states of a run away (a sign
+    error) the terms of an operational-space law that change with the speed look like a huge
+    damping whatever the law. Every number printed is the one the verdict was drawn from.
 
     Args:
         torque: the controller, ``torque(model, data) -> tau``.
@@ -89,23 +126,47 @@ def stiff_damping(model: mujoco.MjModel, torque: Callable, q, qdot, t: float = 0
     if not np.all(np.isfinite(D)):
         return None
     dt = model.opt.timestep
-    fastest = float(np.max(np.real(np.linalg.eigvals(np.linalg.solve(M, D)))))
-    if fastest * dt <= limit:
+    rate = fastest_velocity_pole(D, M)
+    if rate * dt <= limit:
         return None
-    ratios = np.diag(D) * dt / np.diag(M)
-    j = int(np.argmax(ratios))
-    kd, inertia = float(D[j, j]), float(M[j, j])
-    name = _JOINT_NAMES[j] if j < len(_JOINT_NAMES) else f"joint {j + 1}"
     integrator = _INTEGRATOR_NAME[int(model.opt.integrator)]
-    return (
-        f"this is not a sign error: the damping is too stiff for the time step. From t = {t:.3f} s on, the "
-        f"{name} has inertia M = {inertia:.4g} kg·m² and your controller's damping there is Kd = {kd:.4g} N·m·s/rad, "
-        f"so Kd·Δt/M = {kd:.4g} × {dt:g} / {inertia:.4g} = {kd * dt / inertia:.3g}, above the {limit:g} that "
-        f"{integrator} can integrate (explicit discretisation of a stiff damping term). Remedies: a smaller time "
-        f"step (Δt < {limit * inertia / kd:.2g} s here), a lower Kd (below {limit * inertia / dt:.3g} N·m·s/rad for "
-        "this joint), clipping or saturating the torque, or implicit damping (MuJoCo's joint damping with the "
-        "implicitfast integrator)."
-    )
+    above = f"above the {limit:g} that {integrator} can integrate"
+    when = f"From t = {t:.3f} s on"
+    eye = np.eye(model.nv)
+    kd = multiple_of(D, eye)
+    if kd is not None:  # PD: the same damping on every joint, whatever its inertia
+        ratios = kd * dt / np.diag(M)
+        j = int(np.argmax(ratios))
+        if ratios[j] > limit:
+            inertia = float(M[j, j])
+            name = _JOINT_NAMES[j] if j < len(_JOINT_NAMES) else f"joint {j + 1}"
+            return (
+                f"the damping is too stiff for the time step. {when}, the {name} has inertia "
+                f"M = {inertia:.4g} kg·m² and your controller's damping is Kd = {kd:.3g} N·m·s/rad on every "
+                f"joint, so Kd·Δt/M = {kd:.3g} × {dt:g} / {inertia:.4g} = {ratios[j]:.3g}, {above} (explicit "
+                "discretisation of a stiff damping term; the law itself would settle). Remedies: a smaller time "
+                f"step (Δt < {limit * inertia / kd:.2g} s here), a lower Kd (below {limit * inertia / dt:.3g} "
+                f"N·m·s/rad for this joint), " + _REMEDIES
+            )
+    pole = f"the fastest joint velocities decay at λ = {rate:.4g} 1/s, and λ·Δt = {rate * dt:.3g} is {above}"
+    kd = multiple_of(np.linalg.solve(M, D), eye)
+    if kd is not None:  # computed torque: M Kd, the rate Kd itself
+        return (
+            f"the damping is too stiff for the time step. {when}, your law damps as computed torque does, "
+            f"M(q)·Kd with Kd = {kd:.4g} 1/s: {pole}. Lower Kd below {limit / dt:.3g} 1/s, or take a smaller "
+            f"time step (Δt < {limit / rate:.2g} s)."
+        )
+    kd = multiple_of(M @ D, eye)
+    if kd is not None:  # M⁻¹ Kd: the mass matrix inverted
+        return (
+            f"{when}, your law's damping is M(q)⁻¹·Kd with Kd = {kd:.4g}, where computed torque's is M(q)·Kd: "
+            "the law divides by the mass matrix where it should multiply by it (np.linalg.solve(M, v) is "
+            f"M⁻¹v; M @ v is M v). Where the arm's inertia is small, M⁻¹ is large: {pole}. Fix the law: "
+            "a smaller time step would only hide the mistake."
+        )
+    # None of the three: far from a set-point a law's damping also holds the change of J⁻¹ and
+    # J̇q̇ with the speeds, which a run away makes large whatever the law; no time step to blame.
+    return None
 
 
 def explain_divergence(
