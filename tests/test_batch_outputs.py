@@ -2,10 +2,12 @@
 
 What the batch command refuses before it grades anything (a seed that is not a whole number
 from 0, an output folder it cannot write), which files it grades (``.ipynb`` in any case) and
-which it names as left aside, and what it writes: blank cells for a row the grader failed on,
-messages on one line without control characters, files private to their owner, no feedback
-left over from an earlier batch. The Canvas tool grades a notebook of any size the way the batch
-does. Each test grades notebooks that need no sandbox, or runs ``--unsafe-no-sandbox``: seconds.
+which it names and records as left aside, and what it writes: blank cells for a row the grader
+failed on, a reason to ask again for an empty upload, messages on one line without control
+characters, files private to their owner, no feedback left over from an earlier batch. The
+Canvas tool grades a notebook of any size the way the batch does, and reports unreadable ones.
+``assign --check`` says how to regenerate what drifted. Each test grades notebooks that need no
+sandbox, or runs ``--unsafe-no-sandbox``: seconds.
 """
 
 import csv
@@ -20,7 +22,7 @@ import nbformat
 import pytest
 from test_canvas import COLUMN, EXPORT, build_zip, fake_grade, fake_notebook
 
-from labsupport.instructor import batch, canvas, judge
+from labsupport.instructor import assign, batch, canvas, judge
 
 ROOT = Path(__file__).resolve().parents[1]
 SPEC = ROOT / "tests" / "autograder" / "problem1.json"
@@ -89,13 +91,17 @@ def test_an_output_folder_that_cannot_be_written_is_refused_before_grading(tmp_p
 
 
 def test_every_notebook_gets_a_row_whatever_the_case_of_its_extension(tmp_path, capsys):
-    """``.IPYNB`` used to be skipped, and the files left aside were not named."""
+    """``.IPYNB`` used to be skipped, and the files left aside were not named; they were named on
+    the screen only, and a subfolder of notebooks looked like any other file left aside."""
     notebooks = {"a.ipynb": b"not json", "a.IPYNB": b"not json either", "B.Ipynb": b"{"}
     subs = _folder(tmp_path / "subs", {**notebooks, "notes.py": b"x = 1", "report.pdf": b"%PDF"})
     (subs / "old").mkdir()
+    _folder(subs / "late", {"c.ipynb": b"{}", "d.ipynb": b"{}", "readme.txt": b""})
     rows = batch.run_batch(subs, SPEC, tmp_path / "out", jobs=1, unsafe_no_sandbox=True)
     assert {r["file"] for r in rows} == set(_rows(tmp_path / "out")) == set(notebooks)
-    assert "not graded (not .ipynb files): notes.py, old/, report.pdf" in capsys.readouterr().err
+    aside = ["late/ (holds 2 notebooks: grade that folder, or move them up)", "notes.py", "old/", "report.pdf"]
+    assert "not graded (not .ipynb files): " + ", ".join(aside) in capsys.readouterr().err
+    assert json.loads((tmp_path / "out" / "batch.json").read_text(encoding="utf-8"))["left_aside"] == aside
     # a.ipynb and a.IPYNB share a stem: each keeps a feedback file of its own
     feedback = {p.name: p.read_text(encoding="utf-8") for p in (tmp_path / "out" / "feedback").iterdir()}
     assert {name: text.splitlines()[0] for name, text in feedback.items()} == {
@@ -128,6 +134,46 @@ def test_a_row_the_grader_failed_on_gets_no_score_never_a_zero(tmp_path, monkeyp
     feedback = (tmp_path / "out" / "feedback" / "student.txt").read_text(encoding="utf-8")
     assert "Score: not recorded / 10   (status: error)" in feedback and "Score: 0" not in feedback
     assert "- p1_ik (- / 3): not graded: the grader failed: the model file is missing" in feedback
+
+
+EMPTY_REASON = "the file is empty (0 bytes): ask the student to upload it again"
+
+
+def test_an_empty_upload_is_unreadable_and_says_to_ask_for_it_again(tmp_path):
+    """Its reason used to be "not a valid notebook: invalid JSON (Expecting value at line 1)"."""
+    subs = _folder(tmp_path / "subs", {"empty.ipynb": b"", "broken.ipynb": b"{"})
+    batch.run_batch(subs, SPEC, tmp_path / "out", jobs=1, seed=1, unsafe_no_sandbox=True)
+    rows = _rows(tmp_path / "out")
+    assert [rows["empty.ipynb"][k] for k in ("status", "total", "max")] == ["unreadable", "0", "10"]
+    assert rows["empty.ipynb"]["reason"] == f"{EMPTY_REASON}; {batch.UNSAFE_NOTE}"
+    assert rows["broken.ipynb"]["reason"].startswith("not a valid notebook: invalid JSON")
+    feedback = (tmp_path / "out" / "feedback" / "empty.txt").read_text(encoding="utf-8")
+    assert f"- p1_ik (- / 3): not graded: {EMPTY_REASON}" in feedback
+
+
+def test_canvas_lists_unreadable_uploads_in_the_report(tmp_path):
+    """They scored 0 and the report never said so."""
+    members = {
+        "smithbob_1234_50001_problem1_reaching.ipynb": b"",
+        "garcíaana_1235_50002_problem1_reaching.ipynb": b"{",
+    }
+
+    def grade(folder, spec_path, out):  # the batch grader: these notebooks need no sandbox
+        return batch.run_batch(folder, spec_path, out, jobs=1, seed=1, unsafe_no_sandbox=True)
+
+    result = canvas.grade_canvas(build_zip(tmp_path / "s.zip", members), EXPORT, SPEC, tmp_path / "out", grade=grade)
+    assert result.scores == {1234: "0", 1235: "0"}
+    assert result.unreadable == [
+        f"Smith, Bob: problem1_reaching.ipynb: {EMPTY_REASON}",
+        "García, Ana: problem1_reaching.ipynb: not a valid notebook: invalid JSON "
+        "(Expecting property name enclosed in double quotes at line 1)",
+    ]
+    report = (tmp_path / "out" / "report.txt").read_text(encoding="utf-8")
+    section = next(part for part in report.split("\n\n") if part.startswith("Unreadable files"))
+    assert section.splitlines() == [
+        "Unreadable files (scored 0: ask the student for a notebook that opens, then grade again): 2",
+        *(f"  - {item}" for item in result.unreadable),
+    ]
 
 
 def test_canvas_leaves_the_cell_of_a_row_the_grader_failed_on_as_exported(tmp_path):
@@ -289,3 +335,28 @@ def test_canvas_grades_can_be_reproduced_with_their_seed(tmp_path, capsys, monke
     members = {"smithbob_1234_50001_problem1_reaching.ipynb": fake_notebook(p1_ik=3)}
     canvas.grade_canvas(build_zip(tmp_path / "s.zip", members), EXPORT, SPEC, tmp_path / "out", seed=123)
     assert seeds == [123]
+
+
+# --- assign --------------------------------------------------------------------------------------
+
+
+def test_assign_check_says_how_to_regenerate_what_drifted(tmp_path, capsys, monkeypatch):
+    """It said "<file>: differ from the masters" without saying what to do."""
+    master = nbformat.v4.new_notebook()
+    master.metadata["labsupport_grading"] = {
+        "problem": "p9",
+        "student": "notebooks/p9.ipynb",
+        "checks": [{"name": "c1", "points": 1, "title": "the one check"}],
+    }
+    master.cells = [nbformat.v4.new_code_cell('check("c1", globals())', id="c1")]
+    (tmp_path / "notebooks" / "masters").mkdir(parents=True)
+    nbformat.write(master, tmp_path / "notebooks" / "masters" / "p9.ipynb")
+    monkeypatch.setattr(assign, "ROOT", tmp_path)  # a checkout of one master, nothing generated yet
+    assert assign.main(["--check"]) == 1
+    assert capsys.readouterr().out.splitlines() == [
+        "notebooks/p9.ipynb: differs from the masters",
+        "tests/autograder/p9.json: differs from the masters",
+        "run `python -m labsupport.instructor.assign` to regenerate them",
+    ]
+    assert assign.main([]) == 0 and assign.main(["--check"]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == "everything is up to date"

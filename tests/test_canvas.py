@@ -9,7 +9,8 @@ The fixtures in tests/fixtures/canvas/ are synthetic but named and laid out as C
 * ``submissions.zip``: built from :data:`ZIP_MEMBERS` below (a test checks that they agree);
   each notebook carries the scores a fake grader returns for it, so the round trip is checked
   without running the real grader; :func:`test_end_to_end_with_the_real_batch_grader` runs it;
-* ``expected_import.csv``: what must come out.
+* ``expected_import.csv``: what must come out: the export's identifying columns and the
+  Problem's column, filled.
 """
 
 import csv
@@ -72,6 +73,28 @@ def build_zip(path: Path, members: dict[str, bytes]) -> Path:
     with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
         for name, data in members.items():
             zf.writestr(zipfile.ZipInfo(name, date_time=(2025, 3, 14, 9, 26, 0)), data, zipfile.ZIP_DEFLATED)
+    return path
+
+
+def build_legacy_zip(path: Path, members: dict[bytes, bytes]) -> Path:
+    """A zip whose entry names are the raw bytes given, stored without the UTF-8 flag
+    (general-purpose bit 11), as Info-ZIP and rubyzip write them.
+
+    Each entry is written under an ASCII name of the same length (which sets no flag), then that
+    name is overwritten in the entry's local header and in its central directory record.
+    """
+    names = list(members)
+    build_zip(path, {str(k).rjust(len(name), "x"): data for k, (name, data) in enumerate(members.items())})
+    raw = bytearray(path.read_bytes())
+    with zipfile.ZipFile(path) as zf:
+        starts = [info.header_offset + 30 for info in zf.infolist()]  # after each local header's fixed part
+    central = int.from_bytes(raw[-6:-2], "little")  # the end record (no comment) says where the directory starts
+    for _ in names:
+        starts.append(central + 46)
+        central += 46 + sum(int.from_bytes(raw[central + k : central + k + 2], "little") for k in (28, 30, 32))
+    for start, name in zip(starts, names + names, strict=True):
+        raw[start : start + len(name)] = name
+    path.write_bytes(bytes(raw))
     return path
 
 
@@ -275,27 +298,29 @@ def test_round_trip_matches_the_expected_import(round_trip):
     assert result.column == COLUMN and result.points_possible == 20 and result.maximum == 10
 
 
-def test_round_trip_changes_only_the_problem_column(round_trip):
+def test_the_import_holds_the_identifying_columns_and_the_problems_only(round_trip):
+    """It used to echo every other column of the export: importing an export made before grades
+    were changed in Canvas put the old grades back."""
     _, out, _ = round_trip
     before = canvas.read_gradebook(EXPORT)
     after = canvas.read_gradebook(out / "gradebook_import.csv")
     col = before.header.index(COLUMN)
-    assert after.header == before.header and after.student_rows == before.student_rows
+    assert after.header == ["Student", "ID", "SIS User ID", "SIS Login ID", "Section", COLUMN]
+    assert after.student_rows == before.student_rows and after.points_row == before.points_row == 2
     assert len(after.records) == len(before.records)
-    changed_rows = {before.student_rows[u] for u in EXPECTED_CELLS}
+    user_of_row = {r: u for u, r in before.student_rows.items()}
     for r, (old, new) in enumerate(zip(before.records, after.records, strict=True)):
-        if r not in changed_rows:
-            assert new == old, f"record {r} changed"  # byte for byte: header, points row, other students
-            continue
         old_fields, old_end = canvas.split_fields(old, ",")
         new_fields, new_end = canvas.split_fields(new, ",")
-        assert old_end == new_end and len(old_fields) == len(new_fields)
-        assert [f for i, f in enumerate(new_fields) if i != col] == [f for i, f in enumerate(old_fields) if i != col]
-    for user, cell in EXPECTED_CELLS.items():
-        assert after.cell(user, col) == cell
-    # re-read independently with the csv module: the Points Possible row and the totals are untouched
-    rows = list(csv.reader(io.StringIO((out / "gradebook_import.csv").read_text(encoding="utf-8"))))
-    assert rows[2][0] == "    Points Possible" and rows[2][col] == "20.00"
+        assert new_end == old_end and new_fields[:5] == old_fields[:5], f"record {r}"  # raw text, quotes kept
+        assert new_fields[5:] == [EXPECTED_CELLS.get(user_of_row.get(r), old_fields[col])], f"record {r}"
+    raw = (out / "gradebook_import.csv").read_text(encoding="utf-8")
+    assert '"Smith, Bob",1234,S001,bsmith,Section A,20\n' in raw and "\n,,,,,Manual Posting\n" in raw
+    for other in ("9.00", "Task 1 quiz", "Problem 2", "Current Score", "(read only)", "Extension"):
+        assert other not in raw, other
+    # re-read independently with the csv module: the Points Possible row keeps the column's points
+    rows = list(csv.reader(io.StringIO(raw)))
+    assert rows[2] == ["    Points Possible", "", "", "", "", "20.00"]
 
 
 def test_students_without_a_score_keep_their_exported_cell_never_zero(round_trip):
@@ -345,7 +370,13 @@ def test_report_lists_late_resubmissions_groups_and_scaling(round_trip):
     ]
     assert any("leekim_1238_50005_problem2_tracking.ipynb" in n for n in result.not_graded)
     assert any("oharasean_1236_50004_notes.pdf (not a notebook" in n for n in result.not_graded)
-    assert "Lee, Kim: replaces the grade 10.00 already in Canvas with 16" in result.notes
+    # a grade the import overwrites is listed first, where it is seen before importing
+    assert result.replaced == ["Lee, Kim: replaces the grade 10.00 already in Canvas with 16"]
+    assert not any("replaces" in n for n in result.notes)
+    assert report.split("\n\n")[1] == (
+        "Grades already in Canvas that this import replaces: 1\n"
+        "  - Lee, Kim: replaces the grade 10.00 already in Canvas with 16"
+    )
     assert any("Wong, Mei" in n and "'theroboticists'" in n for n in result.notes)
     assert "scaled by 20/10" in report and "Column: Problem 1: Reaching (4101) (points possible 20)" in report
 
@@ -356,7 +387,8 @@ def test_feedback_files_carry_the_score_and_every_message_and_canvas_can_match_t
     smith = result.feedback[1234]
     assert smith.name == "smithbob_1234_50001_feedback.txt"
     text = smith.read_text()
-    assert "Smith, Bob" in text and "Score: 20 / 20" in text and "(10 of the checks' 10 points, scaled)" in text
+    assert text.splitlines()[0] == "Feedback on problem1 for Smith, Bob"  # canvas.FEEDBACK_HEADER, as the batch's
+    assert "Score: 20 / 20" in text and "(10 of the checks' 10 points, scaled)" in text
     for check in ("p1_ik", "p1_pd", "p1_ct", "p1_reach"):
         assert f"{check} message for smithbob_1234" in text
     assert "Not scored: timed out" in result.feedback[1239].read_text()
@@ -369,6 +401,25 @@ def test_feedback_files_carry_the_score_and_every_message_and_canvas_can_match_t
         submitted = next(e for e in ZIP_MEMBERS if e.startswith(name.removesuffix("_feedback.txt") + "_"))
         assert canvas.parse_submission_name(submitted).user_id == int(user_id)
         assert canvas.parse_submission_name(submitted).attachment_id == int(attachment_id)
+
+
+def test_a_regrade_into_the_same_folder_leaves_no_stale_feedback(tmp_path):
+    """The feedback files of an earlier zip used to stay in OUT/feedback beside the new ones."""
+    out = tmp_path / "out"
+    canvas.grade_canvas(FIXTURES / "submissions.zip", EXPORT, SPEC, out, grade=fake_grade([]))
+    assert len(list((out / "feedback").iterdir())) == 7
+    (out / "feedback" / "my notes.txt").write_text("the instructor's own file", encoding="utf-8")
+    (out / "feedback" / "older_1_2_feedback.txt").write_text("problem1 feedback for someone", encoding="utf-8")
+    members = {"smithbob_1234_50011_problem1_reaching-1.ipynb": fake_notebook(p1_ik=3)}
+    result = canvas.grade_canvas(build_zip(tmp_path / "second.zip", members), EXPORT, SPEC, out, grade=fake_grade([]))
+    assert sorted(p.name for p in (out / "feedback").iterdir()) == [
+        "my notes.txt",  # not written by a grader: kept
+        "older_1_2_feedback.txt",  # does not begin as a grader's feedback: kept
+        "smithbob_1234_50011_feedback.txt",
+    ]
+    assert result.feedback == {1234: out / "feedback" / "smithbob_1234_50011_feedback.txt"}
+    with zipfile.ZipFile(out / "feedback_upload.zip") as zf:
+        assert zf.namelist() == ["smithbob_1234_50011_feedback.txt"]
 
 
 def test_semicolons_bom_crlf_and_decimal_commas_survive(tmp_path):
@@ -384,7 +435,8 @@ def test_semicolons_bom_crlf_and_decimal_commas_survive(tmp_path):
     out = (tmp_path / "out" / "gradebook_import.csv").read_bytes()
     assert out.startswith("\ufeff".encode()) and out.count(b"\r\n") == len(rows)
     before, after = canvas.read_gradebook(export), canvas.read_gradebook(tmp_path / "out" / "gradebook_import.csv")
-    assert after.delimiter == ";" and after.rows[0] == before.rows[0] and after.rows[2] == before.rows[2]
+    assert after.delimiter == ";" and after.rows[0] == [*before.rows[0][:5], COLUMN]
+    assert after.rows[2] == [*before.rows[2][:5], "20,00"]  # the Points Possible row, decimal comma kept
     assert after.cell(1235, after.header.index(COLUMN)) == "15"
 
 
@@ -419,6 +471,47 @@ def test_zip_slip_is_refused(tmp_path, evil):
     with pytest.raises(ValueError, match="points outside the folder"):
         canvas.grade_canvas(zpath, EXPORT, SPEC, tmp_path / "out", grade=fake_grade(calls))
     assert calls == [] and not (tmp_path / "escaped_1234_1_problem1_reaching.ipynb").exists()
+
+
+#: Entries named as Info-ZIP and rubyzip store them: bytes without the UTF-8 flag.
+LEGACY_MEMBERS = {
+    "garcíaana_LATE_1235_50002_problem1_reaching.ipynb".encode(): ZIP_MEMBERS[
+        "garcíaana_LATE_1235_50002_problem1_reaching.ipynb"
+    ],
+    "oharasean_1236_50003_Lösung_problem1.ipynb".encode(): fake_notebook(p1_ik=1.5, p1_pd=0, p1_ct=1.5, p1_reach=0),
+    # code page 437 bytes, which are not UTF-8: read as code page 437
+    "smithbob_1234_50001_Lösung_problem1.ipynb".encode("cp437"): ZIP_MEMBERS[
+        "smithbob_1234_50001_problem1_reaching.ipynb"
+    ],
+}
+
+
+def test_names_stored_without_the_utf8_flag_are_read_as_utf8_where_they_decode(tmp_path):
+    """Python's zipfile reads such names as code page 437: "garcíaana" came out "garc├¡aana",
+    and the file was reported as named after another student."""
+    zpath = build_legacy_zip(tmp_path / "legacy.zip", LEGACY_MEMBERS)
+    with zipfile.ZipFile(zpath) as zf:
+        assert [info.flag_bits & 0x800 for info in zf.infolist()] == [0, 0, 0]
+        assert zf.namelist() == [
+            "garc├¡aana_LATE_1235_50002_problem1_reaching.ipynb",
+            "oharasean_1236_50003_L├╢sung_problem1.ipynb",
+            "smithbob_1234_50001_Lösung_problem1.ipynb",
+        ]
+        assert [info.filename for info in canvas.safe_zip_entries(zf)] == [
+            "garcíaana_LATE_1235_50002_problem1_reaching.ipynb",
+            "oharasean_1236_50003_Lösung_problem1.ipynb",
+            "smithbob_1234_50001_Lösung_problem1.ipynb",
+        ]
+    result = canvas.grade_canvas(zpath, EXPORT, SPEC, tmp_path / "out", grade=fake_grade([]))
+    assert result.scores == {1234: "20", 1235: "15", 1236: "6"} and result.not_scored == []
+    assert not any("named after" in n for n in result.notes), result.notes
+    assert result.late == ["García, Ana: garcíaana_LATE_1235_50002_problem1_reaching.ipynb"]
+    assert result.feedback[1236].name == "oharasean_1236_50003_feedback.txt"
+    assert "File graded: Lösung_problem1.ipynb" in result.feedback[1236].read_text(encoding="utf-8")
+    # the safety checks read the name used
+    slip = build_legacy_zip(tmp_path / "slip.zip", {"../é_1234_1_p.ipynb".encode(): b"{}"})
+    with zipfile.ZipFile(slip) as zf, pytest.raises(ValueError, match=r"named '\.\./é_1234_1_p\.ipynb'"):
+        canvas.safe_zip_entries(zf)
 
 
 def test_zip_bombs_are_refused_or_left_ungraded(tmp_path, monkeypatch):

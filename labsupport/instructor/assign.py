@@ -38,8 +38,10 @@ import nbformat
 MASTERS = Path("notebooks") / "masters"
 #: Where the autograder specs are written, relative to the repository root.
 SPEC_DIR = Path("tests") / "autograder"
+#: The checkout, whatever the working folder.
+ROOT = Path(__file__).resolve().parents[2]
 #: Where ``--problem NAME`` of the batch and Canvas commands finds them, from any working folder.
-SPECS = Path(__file__).resolve().parents[2] / SPEC_DIR
+SPECS = ROOT / SPEC_DIR
 _CHECK_CELL = re.compile(r'^check\("([a-z0-9_]+)", globals\(\)\)\s*$')
 #: Cell metadata copied as is into the student's cell: ``mystnb`` holds the book's per-cell
 #: options, such as a figure's text alternative (``{"mystnb": {"image": {"alt": ...}}}``).
@@ -155,9 +157,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description="Generate student notebooks and autograder specs from the masters.")
     parser.add_argument("--check", action="store_true", help="only compare with what is on disk; exit 1 on drift")
     args = parser.parse_args(argv)
-    root = Path(__file__).resolve().parents[2]  # the checkout, whatever the working folder
     try:
-        files = outputs(root)
+        files = outputs(ROOT)
     except MasterError as err:
         parser.error(str(err))
     drift = []
@@ -169,8 +170,13 @@ def main(argv=None) -> int:
         if not args.check:
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_text(text, encoding="utf-8")
-    verb = "differ from the masters" if args.check else "written"
-    print("\n".join(f"{p.relative_to(root)}: {verb}" for p in drift) or "everything is up to date")
+    verb = "differs from the masters" if args.check else "written"
+    lines = [f"{p.relative_to(ROOT)}: {verb}" for p in drift]
+    if args.check and drift:
+        lines.append(
+            "run `python -m labsupport.instructor.assign` to regenerate " + ("it" if len(drift) == 1 else "them")
+        )
+    print("\n".join(lines) or "everything is up to date")
     return 1 if (args.check and drift) else 0
 
 

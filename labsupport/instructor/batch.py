@@ -1,4 +1,7 @@
-"""Grade a folder of executed student notebooks: one CSV row per file, one feedback file per student.
+"""Grade a folder of student notebooks: one CSV row per file, one feedback file per student.
+
+The grader runs each notebook's code cells from their source and ignores stored outputs: the
+notebooks need not be executed.
 
 Usage (from the repository root)::
 
@@ -7,8 +10,10 @@ Usage (from the repository root)::
 ``--problem NAME`` reads the autograder spec ``tests/autograder/NAME.json`` (or give
 ``--spec PATH``). Every ``*.ipynb`` in SUBMISSIONS (``.IPYNB`` too: any case) gets a row in
 ``OUT/grades.csv`` (a score per check, the total, a status and a reason) and a
-``OUT/feedback/<file>.txt``, whatever the file does; the other files are named on stderr and
-left aside. ``OUT/batch.json`` records the seed, the spec, the date and the versions, so that
+``OUT/feedback/<file>.txt``, whatever the file does (an empty one is "unreadable", with a
+reason saying to ask for it again); the other files and the subfolders are named on stderr,
+left aside and listed in ``OUT/batch.json`` (a subfolder holding notebooks says how many).
+``OUT/batch.json`` also records the seed, the spec, the date and the versions, so that
 ``--seed`` reproduces every grade. A row whose grading failed ("error") or ran out of wall-clock
 time ("timed out: regrade") gets no score, never a zero. Every message is written on one line,
 without control characters (student code writes into them); the files are the owner's alone
@@ -59,15 +64,23 @@ import labsupport
 from labsupport.grading import registry
 from labsupport.instructor import isolation, judge
 from labsupport.instructor.assign import SPECS
-from labsupport.instructor.canvas import STRIP_OUTPUTS_BYTES, clean_text, keep_private, seed_argument, without_outputs
+from labsupport.instructor.canvas import (
+    FEEDBACK_HEADER,
+    STRIP_OUTPUTS_BYTES,
+    clean_text,
+    keep_private,
+    remove_stale_feedback,
+    seed_argument,
+    without_outputs,
+)
 
 #: The note every row carries when the batch ran without a sandbox.
 UNSAFE_NOTE = "graded WITHOUT a sandbox (--unsafe-no-sandbox): only for submissions you trust"
 #: Statuses of rows that carry no score (the grader failed, or the wall-clock backstop ran out):
 #: their score cells stay blank, never 0, and their feedback says the score is not recorded.
 UNSCORED = ("error", judge.REGRADE)
-#: How every feedback file this grader writes begins (how a stale one is recognised).
-FEEDBACK_HEADER = "Feedback on "
+#: The reason of an empty (0-byte) file's row: an upload that went wrong, not a notebook's fault.
+EMPTY_FILE = "the file is empty (0 bytes): ask the student to upload it again"
 
 
 def new_seed() -> int:
@@ -81,16 +94,23 @@ def is_notebook(path: Path) -> bool:
 
 
 def list_notebooks(folder: Path) -> list[Path]:
-    """The notebooks at the top of ``folder``, sorted; names every other entry on stderr, so
-    that nothing is left aside unsaid."""
-    entries = sorted(Path(folder).iterdir())
-    ignored = [p.name + ("/" if p.is_dir() else "") for p in entries if not is_notebook(p)]
-    if ignored:
-        print(
-            "not graded (not .ipynb files): " + clean_text(", ".join(ignored)),
-            file=sys.stderr,
-        )
-    return [p for p in entries if is_notebook(p)]
+    """The notebooks at the top of ``folder``, sorted."""
+    return [p for p in sorted(Path(folder).iterdir()) if is_notebook(p)]
+
+
+def left_aside(folder: Path) -> list[str]:
+    """Every other entry at the top of ``folder``, sorted: a file by its name, a subfolder with a
+    ``/`` and, when it holds notebooks, how many and what to do about them."""
+    aside = []
+    for p in sorted(Path(folder).iterdir()):
+        if not p.is_dir():
+            if not is_notebook(p):
+                aside.append(p.name)
+            continue
+        nested = sum(1 for q in p.rglob("*") if is_notebook(q))
+        held = f"{nested} notebook{'s' if nested != 1 else ''}"
+        aside.append(p.name + "/" + (f" (holds {held}: grade that folder, or move them up)" if nested else ""))
+    return aside
 
 
 def feedback_text(name: str, spec: dict, row: dict) -> str:
@@ -174,14 +194,16 @@ def run_batch(
     spec = json.loads(spec_path.read_text(encoding="utf-8"))
     if not Path(submissions).is_dir():
         raise ValueError(f"submissions must be a folder of .ipynb files; {submissions} is not a folder")
-    files = list_notebooks(submissions)
+    files, aside = list_notebooks(submissions), left_aside(submissions)
+    if aside:  # nothing is left aside unsaid
+        print("not graded (not .ipynb files): " + clean_text(", ".join(aside)), file=sys.stderr)
     payloads = []
     for p in files:  # read everything first: nothing a submission does later can lose another one
         try:
             data = p.read_bytes()
             if len(data) > STRIP_OUTPUTS_BYTES:  # kept in memory until graded: only what is graded
                 data = without_outputs(data)
-            payloads.append((p.name, data, None))
+            payloads.append((p.name, data, None) if data else (p.name, None, EMPTY_FILE))
         except OSError as err:
             payloads.append((p.name, None, f"could not read the file: {err.strerror}"))
     seed = new_seed() if seed is None else int(seed)
@@ -221,6 +243,7 @@ def run_batch(
         "sandbox": sandbox,
         "jobs": jobs,
         "submissions": len(rows),
+        "left_aside": aside,
         "seconds": round(elapsed, 1),
         "reproduce": f"--seed {seed}",
     }
@@ -294,28 +317,9 @@ def feedback_names(files: list[str]) -> dict[str, str]:
     return names
 
 
-def remove_stale_feedback(folder: Path, keep: set[str]) -> None:
-    """Delete the feedback files an earlier batch left in ``folder`` (a regrade into the same
-    ``--out``), so that it matches ``grades.csv``; only ``*.txt`` files this grader wrote (they
-    begin with :data:`FEEDBACK_HEADER`) are touched. Names are compared in any case, as a
-    case-insensitive file system would."""
-    keep = {name.casefold() for name in keep}
-    header = FEEDBACK_HEADER.encode()
-    for path in folder.iterdir():
-        if path.name.casefold() in keep or not path.name.endswith(".txt") or path.is_symlink() or not path.is_file():
-            continue
-        try:
-            with open(path, "rb") as f:
-                stale = f.read(len(header)) == header
-            if stale:
-                path.unlink()
-        except OSError:  # not this grader's to remove
-            continue
-
-
 def _write_results(out: Path, spec: dict, rows: list[dict], record: dict) -> None:
     """Write ``grades.csv``, a feedback file per row and ``batch.json`` into ``out``; then remove
-    the feedback files of an earlier batch."""
+    the feedback files of an earlier batch (:func:`labsupport.instructor.canvas.remove_stale_feedback`)."""
     out = Path(out)
     _atomic_write(out / "grades.csv", grades_csv(spec, rows, record["seed"]))
     names = feedback_names([row["file"] for row in rows])
@@ -347,7 +351,9 @@ def _check_submissions_folder(parser: argparse.ArgumentParser, folder: Path) -> 
 
 
 def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description="Grade a folder of executed student notebooks into a CSV.")
+    parser = argparse.ArgumentParser(
+        description="Grade a folder of student notebooks into a CSV (outputs are ignored: they need not be executed)."
+    )
     parser.add_argument("submissions", type=Path, help="folder holding the students' .ipynb files")
     which = parser.add_mutually_exclusive_group(required=True)
     which.add_argument("--problem", help="problem1 or problem2 (reads tests/autograder/NAME.json)")

@@ -9,12 +9,14 @@ reads the zip that an assignment's *Download Submissions* gives and the CSV that
 Gradebook's *Export* gives, grades each student's notebook with
 :func:`labsupport.instructor.batch.run_batch`, and writes
 
-* ``OUT/gradebook_import.csv``: the export with the Problem's column filled, for the
-  Gradebook's *Import*;
+* ``OUT/gradebook_import.csv``: the export's identifying columns (``Student`` to ``Section``)
+  and the Problem's column, filled, for the Gradebook's *Import*; the other assignments' columns
+  are left out, so a stale export cannot revert grades changed in Canvas since;
 * ``OUT/feedback/<canvas prefix>_feedback.txt``: one file per graded student, and
   ``OUT/feedback_upload.zip`` holding them all, for the assignment's *Re-upload Submissions*;
-* ``OUT/report.txt``: what was graded and what was not, and why (files that match no student,
-  students with no submission, late work, resubmissions, scaling);
+* ``OUT/report.txt``: what was graded and what was not, and why (grades in Canvas that the
+  import replaces, files that match no student, students with no submission, unreadable files,
+  late work, resubmissions, scaling);
 * ``OUT/batch/``: the batch grader's own ``grades.csv`` and feedback.
 
 What Canvas produces, and where each fact comes from
@@ -64,7 +66,8 @@ Gradebook export (``lib/gradebook_exporter.rb``) and import (``lib/gradebook_imp
 * the import requires a first row starting ``Student``, ``ID`` (or ``LastName``, ``FirstName``,
   ``ID``) whose student columns end with ``Section``; it finds each student by ``ID`` first,
   then SIS ids, then name; it skips the Points Possible and Manual Posting rows and ignores
-  read-only columns; it reads ``;`` or ``,`` as the separator and a decimal comma or point;
+  read-only columns; it updates only the columns the file holds; it reads ``;`` or ``,`` as the
+  separator and a decimal comma or point;
 * a blank cell means "no score", so a student with no submission keeps the cell as exported
   (empty unless Canvas already had a grade; never a 0, which would be a grade); the Points
   Possible row is kept as exported, and a score is scaled to the column's points possible
@@ -112,6 +115,10 @@ SCORED_STATUSES = ("graded", "unreadable")
 MAX_MESSAGE_CHARS = 2000
 #: Bidirectional overrides and isolates: they reorder what a reader sees of the text around them.
 _BIDI_CONTROLS = frozenset("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
+#: How every feedback file either grader writes begins (how a stale one is recognised).
+FEEDBACK_HEADER = "Feedback on "
+#: General-purpose flag bit 11 of a zip entry: its name is stored in UTF-8.
+_UTF8_NAME_FLAG = 0x800
 
 _UPLOAD = re.compile(
     r"^(?:(?P<name>.*?)_)??(?:(?P<late>LATE)_)?(?P<user>\d+|anon_[A-Za-z0-9]+)_(?P<attachment>\d+)_(?P<original>.+)$"
@@ -167,6 +174,25 @@ def seed_argument(text: str) -> int:
     if not (text.isascii() and text.isdigit()):
         raise argparse.ArgumentTypeError(f"give a whole number, 0 or more (as batch.json records it), not {text!r}")
     return int(text)
+
+
+def remove_stale_feedback(folder: Path, keep: set[str]) -> None:
+    """Delete the feedback files an earlier run left in ``folder`` (a regrade into the same
+    ``--out``), so that it matches what was just graded; only ``*.txt`` files a grader wrote (they
+    begin with :data:`FEEDBACK_HEADER`) are touched. Names are compared in any case, as a
+    case-insensitive file system would."""
+    keep = {name.casefold() for name in keep}
+    header = FEEDBACK_HEADER.encode()
+    for path in folder.iterdir():
+        if path.name.casefold() in keep or not path.name.endswith(".txt") or path.is_symlink() or not path.is_file():
+            continue
+        try:
+            with open(path, "rb") as f:
+                stale = f.read(len(header)) == header
+            if stale:
+                path.unlink()
+        except OSError:  # not this grader's to remove
+            continue
 
 
 def keep_private() -> None:
@@ -238,17 +264,36 @@ def parse_submission_name(entry: str) -> SubmissionFile | None:
     )
 
 
+def entry_name(info: zipfile.ZipInfo) -> str:
+    """The entry's name as its writer meant it.
+
+    A name stored without the UTF-8 flag (general-purpose bit 11; Info-ZIP and rubyzip write
+    such zips) is read by :mod:`zipfile` as code page 437, which garbles a UTF-8 name
+    (``garcíaana`` comes out ``garc├¡aana``); such a name is read as UTF-8 where its bytes are
+    UTF-8, and kept as code page 437 otherwise.
+    """
+    if info.flag_bits & _UTF8_NAME_FLAG:
+        return info.filename
+    try:
+        return info.filename.encode("cp437").decode("utf-8")
+    except UnicodeError:
+        return info.filename
+
+
 def safe_zip_entries(zf: zipfile.ZipFile) -> list[zipfile.ZipInfo]:
-    """The zip's file entries, after refusing a zip that could write outside its folder or explode.
+    """The zip's file entries, named by :func:`entry_name`, after refusing a zip that could write
+    outside its folder or explode.
 
     Refused: more than :data:`MAX_ZIP_ENTRIES` entries, an absolute name, a drive letter, a
-    ``..`` part, a NUL byte, a symbolic link, or a declared total over :data:`MAX_ZIP_BYTES`.
+    ``..`` part, a NUL byte, a symbolic link, or a declared total over :data:`MAX_ZIP_BYTES`;
+    the name checked is the one used. (Renaming an entry is safe: :meth:`zipfile.ZipFile.open`
+    compares the file's own header with ``orig_filename``, which stays as read.)
     """
     infos = zf.infolist()
     if len(infos) > MAX_ZIP_ENTRIES:
         raise ValueError(f"the zip holds {len(infos)} entries, more than {MAX_ZIP_ENTRIES}: not a Canvas download")
     for info in infos:
-        name = info.filename
+        name = info.filename = entry_name(info)
         parts = name.replace("\\", "/").split("/")
         if name.startswith(("/", "\\")) or re.match(r"^[A-Za-z]:", name) or ".." in parts or "\x00" in name:
             raise ValueError(
@@ -508,21 +553,26 @@ def scaled_score(total: float, maximum: float, points_possible: float | None) ->
 
 
 def fill_column(gradebook: Gradebook, column: int, scores: dict[int, str]) -> str:
-    """The export's text with ``scores`` (user id -> cell text) written into ``column``.
+    """The import's text: each record of the export cut to its identifying fields (``Student``
+    to ``Section``) and ``column``, with ``scores`` (user id -> cell text) written into it.
 
-    Every other cell, record, quote, separator and line ending is kept byte for byte.
+    Canvas's import updates only the columns the file holds: the export's other assignments
+    are left out, as their cells would put back what Canvas held when the export was made, over
+    any grade changed since. Every record is kept (the header, the Manual Posting and Points
+    Possible rows, each student), and each kept field's raw text and quotes, the separator, the
+    byte-order mark and the line endings are the export's.
     """
     user_of_row = {row: user for user, row in gradebook.student_rows.items()}
     out = [gradebook.bom]
     for r, record in enumerate(gradebook.records):
-        user = user_of_row.get(r)
-        if user not in scores:
+        fields, ending = split_fields(record, gradebook.delimiter)
+        if fields == [""]:  # a blank line
             out.append(record)
             continue
-        fields, ending = split_fields(record, gradebook.delimiter)
         fields += [""] * (column + 1 - len(fields))
-        fields[column] = scores[user]
-        out.append(gradebook.delimiter.join(fields) + ending)
+        user = user_of_row.get(r)
+        cell = scores[user] if user in scores else fields[column]
+        out.append(gradebook.delimiter.join([*fields[: gradebook.first_assignment_column], cell]) + ending)
     return "".join(out)
 
 
@@ -537,6 +587,7 @@ class CanvasResult:
     points_possible: float | None = None
     maximum: float = 0.0
     scores: dict[int, str] = field(default_factory=dict)  #: user id -> cell written
+    replaced: list[str] = field(default_factory=list)  #: grades already in Canvas that a score replaces
     feedback: dict[int, Path] = field(default_factory=dict)  #: user id -> feedback file
     unmatched: list[str] = field(default_factory=list)  #: files matching no student, and why
     missing: list[str] = field(default_factory=list)  #: gradebook students with nothing graded
@@ -544,6 +595,7 @@ class CanvasResult:
     resubmissions: list[str] = field(default_factory=list)
     not_graded: list[str] = field(default_factory=list)  #: files of known students left aside
     not_scored: list[str] = field(default_factory=list)  #: graded files whose status gave no score
+    unreadable: list[str] = field(default_factory=list)  #: files the grader could not read (scored 0), and why
     notes: list[str] = field(default_factory=list)
 
 
@@ -588,6 +640,7 @@ def grade_canvas(
     out.mkdir(parents=True, exist_ok=True)
     rows = _grade(Path(submissions_zip), chosen, spec_path, out, result, grade or _run_batch(jobs, seed))
     _record_scores(gradebook, col, spec, chosen, rows, out, result)
+    remove_stale_feedback(out / "feedback", {path.name for path in result.feedback.values()})
     (out / "gradebook_import.csv").write_bytes(fill_column(gradebook, col, result.scores).encode("utf-8"))
     _write_feedback_zip(out, result)
     (out / "report.txt").write_text(report_text(gradebook, spec, result), encoding="utf-8")
@@ -679,9 +732,10 @@ def _grade(
     try:
         files = {}
         with zipfile.ZipFile(zip_path) as zf:
+            infos = {info.filename: info for info in safe_zip_entries(zf)}
             for user, f in sorted(chosen.items()):
                 try:
-                    data = read_member(zf, zf.getinfo(f.entry))
+                    data = read_member(zf, infos[f.entry])
                 except (zipfile.BadZipFile, zlib.error, EOFError) as err:
                     result.not_scored.append(f"{f.entry}: damaged in the zip ({err}), not graded")
                     continue
@@ -742,8 +796,11 @@ def _record_scores(
         if previous.upper() in ("EX", "N/A"):
             result.not_scored.append(f"{who}: the cell says {previous} in Canvas and is left so (score {score})")
             continue
+        if row.get("status") == "unreadable":
+            reason = "; ".join(row.get("notes", [])[:1]) or "no reason given"
+            result.unreadable.append(f"{who}: {f.original}: {reason}")
         if previous and previous not in ("-", score) and _decimal_point(previous) != score:
-            result.notes.append(f"{who}: replaces the grade {previous} already in Canvas with {score}")
+            result.replaced.append(f"{who}: replaces the grade {previous} already in Canvas with {score}")
         result.scores[user] = score
 
 
@@ -752,7 +809,7 @@ def feedback_text(
 ) -> str:
     """One student's feedback: the score in Canvas's points, then each check's points and message."""
     lines = [
-        f"{spec['problem']} feedback for {clean_text(who)}",
+        f"{FEEDBACK_HEADER}{spec['problem']} for {clean_text(who)}",
         f"File graded: {clean_text(f.original)}" + ("  (late)" if f.late else ""),
         "",
     ]
@@ -783,7 +840,8 @@ def _write_feedback_zip(out: Path, result: CanvasResult) -> None:
 
 
 def report_text(gradebook: Gradebook, spec: dict, result: CanvasResult) -> str:
-    """The plain-text report: the column written, then each list of what needs a look."""
+    """The plain-text report: the column written, then each list of what needs a look, the
+    grades in Canvas that the import replaces first."""
     out_of = format_score(result.points_possible) if result.points_possible is not None else "?"
     lines = [
         f"Canvas grading report: {spec['problem']}",
@@ -792,9 +850,11 @@ def report_text(gradebook: Gradebook, spec: dict, result: CanvasResult) -> str:
         "",
     ]
     sections = [
+        ("Grades already in Canvas that this import replaces", result.replaced),
         ("Files that match no student of the gradebook (not graded)", result.unmatched),
         ("Students with nothing graded (cell left as exported: empty unless Canvas had a grade)", result.missing),
         ("Graded but not scored (cell left as exported)", result.not_scored),
+        ("Unreadable files (scored 0: ask the student for a notebook that opens, then grade again)", result.unreadable),
         ("Late submissions (graded; any late penalty is yours to apply)", result.late),
         ("Resubmissions graded (Canvas renames a re-uploaded file name-1, name-2, ...)", result.resubmissions),
         ("Other files of students, not graded", result.not_graded),
