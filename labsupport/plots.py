@@ -46,14 +46,15 @@ def _figure(figsize, nrows=1, ncols=1, **kwargs):
 
 
 #: What a single-joint panel can show: its axis label and how to read it from a ``sim.Log``
-#: (``reference(t)`` gives the desired motion, for the error).
+#: (``reference(t)`` gives the desired motion, for the error, which is desired minus actual,
+#: :math:`\theta_d - \theta`, as on the theory page).
 SINGLE_JOINT_QUANTITIES = {
     "angle": ("θ [deg]", lambda log, ref: np.degrees(log.q[:, 0])),
     "rate": (r"$\dot\theta$ [deg/s]", lambda log, ref: np.degrees(log.qdot[:, 0])),
     "speed": ("ω [rad/s]", lambda log, ref: log.qdot[:, 0]),
     "torque": ("τ [N·m]", lambda log, ref: log.tau[:, 0]),
     "effort": ("∫τ² dt [N²·m²·s]", lambda log, ref: cumulative_effort(log.t, log.tau[:, 0])),
-    "error": (r"$\theta - \theta_d$ [deg]", lambda log, ref: np.degrees(log.q[:, 0] - ref(log.t).pos)),
+    "error": (r"$\theta_d - \theta$ [deg]", lambda log, ref: np.degrees(ref(log.t).pos - log.q[:, 0])),
 }
 _LINE_STYLES = ("-", "--", "-.", ":")
 #: Line width of a desired curve: a wide grey band under the runs, told apart by its width.
@@ -96,7 +97,7 @@ def single_joint_panel(
     Args:
         runs: label -> ``sim.Log`` of a one-joint arm; runs after the first are dashed, dash-dotted...
         reference: ``reference(t) -> Reference`` (radians); drawn as "desired" (a wide grey band)
-            on an angle panel and subtracted on an error panel.
+            on an angle panel; an error panel shows desired minus actual, :math:`\theta_d - \theta`.
         level: ``(label, value)``, a dotted horizontal line, in the panel's unit before the
             conversion to degrees (radians for an angle, rad/s for a speed).
         limit: the actuator limit, drawn as red dotted lines at :math:`\pm` ``limit`` on a torque panel.
@@ -185,23 +186,24 @@ def _workspace(ax, reach_min: float, reach_max: float):
 
 
 def reaching_figure(runs: Mapping[str, object], q_d, target, reach: tuple[float, float]):
-    r"""Task 3.1's six panels for several runs (``sim.Log`` with ``ee``): the two joint
-    errors in degrees, the end-effector path, the two joint torques, and the distance to
-    the target in millimetres.
+    r"""Task 3.1's six panels for several runs (``sim.Log`` with ``ee``), three rows of two
+    that fit a page's text column at full size: the two joint errors
+    :math:`q_{d,j} - q_j` (desired minus actual) in degrees, the two joint torques, then the
+    end-effector path and the distance to the target in millimetres.
     """
-    fig, axes = _figure((12, 6.5), 2, 3)
+    fig, axes = _figure((9.2, 10.0), 3, 2)
     target = np.asarray(target, dtype=float)
     for j in range(2):
         ax = axes[0, j]
         for label, log, style, color in _styled(runs):
-            ax.plot(log.t, np.degrees(log.q[:, j] - q_d[j]), style, color=color, lw=1.4, label=label)
+            ax.plot(log.t, np.degrees(q_d[j] - log.q[:, j]), style, color=color, lw=1.4, label=label)
         ax.axhline(0.0, color="k", lw=0.8, ls="--")
-        ax.set(xlabel="time [s]", ylabel=f"$q_{j + 1} - q_{{d,{j + 1}}}$ [deg]", title=f"joint {j + 1} error")
+        ax.set(xlabel="time [s]", ylabel=f"$q_{{d,{j + 1}}} - q_{j + 1}$ [deg]", title=f"joint {j + 1} error")
         ax = axes[1, j]
         for label, log, style, color in _styled(runs):
             ax.plot(log.t, log.tau[:, j], style, color=color, lw=1.4, label=label)
         ax.set(xlabel="time [s]", ylabel=rf"$\tau_{j + 1}$ [N·m]", title=f"joint {j + 1} torque")
-    ax = axes[0, 2]
+    ax = axes[2, 0]
     _workspace(ax, *reach)
     first = next(iter(runs.values()))
     for label, log, style, color in _styled(runs):
@@ -210,14 +212,14 @@ def reaching_figure(runs: Mapping[str, object], q_d, target, reach: tuple[float,
     _points(ax, *target, "r*", ms=12, label="target")
     ax.set_aspect("equal")
     ax.set(xlabel="x [m]", ylabel="y [m]", title="end-effector path")
-    ax = axes[1, 2]
+    ax = axes[2, 1]
     for label, log, style, color in _styled(runs):
         distance = 1000 * np.linalg.norm(log.ee[:, :2] - target, axis=1)
         ax.semilogy(log.t, distance, style, color=color, lw=1.4, label=label)
     ax.set(xlabel="time [s]", ylabel="distance [mm]", title="distance to the target")
     for ax in axes.flat:
         ax.grid(True, alpha=0.4)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=9)
     return fig
 
 

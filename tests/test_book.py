@@ -110,9 +110,43 @@ def test_a_run_keeps_its_colour_in_every_panel_and_single_points_are_drawn():
         plt.close(fig)
         runs = {"PD": _log(t, 0.1, 2), "CT": _log(t, 0.01, 2)}
         fig = plots.reaching_figure(runs, [0.0, 0.0], [0.5, 0.5], (0.1, 1.0))
-        path = {line.get_label(): line for line in fig.axes[2].lines}
+        (panel,) = [ax for ax in fig.axes if ax.get_title() == "end-effector path"]
+        path = {line.get_label(): line for line in panel.lines}
         assert path["start"].get_markevery() is None and path["target"].get_markevery() is None
         assert path["PD"].get_color() == "C0" and path["CT"].get_color() == "C1"
         plt.close(fig)
     finally:
         plt.rcdefaults()
+
+
+def test_error_panels_show_desired_minus_actual():
+    """The theory page's convention, e = desired - actual, on every error panel: a run that sits
+    above its reference plots a negative error, and the axis says which way round it is."""
+    from labsupport.trajectories import sinusoid
+
+    t = np.linspace(0.0, 1.0, 11)
+    fig = plots.single_joint_figure({"run": _log(t, 0.1, 1)}, ["error"], reference=sinusoid)
+    (ax,) = fig.axes
+    assert ax.get_ylabel() == r"$\theta_d - \theta$ [deg]"
+    np.testing.assert_allclose(ax.lines[0].get_ydata(), -np.degrees(0.1))
+    plt.close(fig)
+    fig = plots.reaching_figure({"run": _log(t, 0.1, 2)}, [0.0, 0.0], [0.5, 0.5], (0.1, 1.0))
+    for j, title in enumerate(("joint 1 error", "joint 2 error")):
+        (ax,) = [a for a in fig.axes if a.get_title() == title]
+        assert ax.get_ylabel() == f"$q_{{d,{j + 1}}} - q_{j + 1}$ [deg]"
+        np.testing.assert_allclose(ax.lines[0].get_ydata(), -np.degrees(sinusoid(t).pos + 0.1))
+    plt.close(fig)
+
+
+def test_the_reaching_figure_fits_the_text_column():
+    """At Task 3's 80 dpi the six panels are at most 752 px wide, the page's text column, so
+    the page shows them unscaled and their tick labels stay about 11 px tall."""
+    import io
+
+    t = np.linspace(0.0, 1.0, 11)
+    with plt.rc_context({"figure.dpi": 80}):
+        fig = plots.reaching_figure({"PD": _log(t, 0.1, 2)}, [0.0, 0.0], [0.5, 0.5], (0.1, 1.0))
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format="png", bbox_inches="tight")
+    plt.close(fig)
+    assert int.from_bytes(buffer.getvalue()[16:20], "big") <= 752
