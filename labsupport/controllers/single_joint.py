@@ -32,16 +32,18 @@ def pi_speed_torque(t, theta, theta_dot, omega_d, Kp, Ki, theta0=0.0):
 
 
 def pd_torque(theta, theta_dot, theta_d, theta_dot_d, Kp, Kd):
-    r"""PD feedback (Eq. 11.24):
+    r"""PD feedback:
     :math:`\tau_{fb} = K_p(\theta_d - \theta) + K_d(\dot\theta_d - \dot\theta)`.
 
-    For a set-point, :math:`\dot\theta_d = 0`.
+    For a set-point, :math:`\dot\theta_d = 0`, and on the horizontal joint the
+    error :math:`\theta_e = \theta_d - \theta` is a second-order system
+    [MR 11.25-11.26].
     """
     return Kp * (theta_d - theta) + Kd * (theta_dot_d - theta_dot)
 
 
 def feedforward_torque(model: SingleJoint, theta_d, theta_dot_d, theta_ddot_d):
-    r"""Model-based feedforward (Eq. 11.32):
+    r"""Model-based feedforward [MR 11.32]:
 
     .. math:: \tau_{ff} = \tilde M\ddot\theta_d + \tilde h(\theta_d,\dot\theta_d)
 
@@ -54,7 +56,7 @@ def feedforward_torque(model: SingleJoint, theta_d, theta_dot_d, theta_ddot_d):
 def computed_torque(
     model: SingleJoint, theta, theta_dot, theta_d, theta_dot_d, theta_ddot_d, Kp, Kd
 ):
-    r"""Feedforward plus feedback (Eq. 11.35):
+    r"""Feedforward plus feedback [MR 11.35]:
 
     .. math::
         \tau = \underbrace{\tilde M\ddot\theta_d
