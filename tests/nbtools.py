@@ -43,7 +43,7 @@ def install_cell_source(url: str | None = None, branch: str | None = None) -> st
     url = url or repository_url()
     return (
         "# Set-up: where labsupport is missing (a fresh Colab runtime, a downloaded notebook),\n"
-        "# install it with its models and pinned dependencies from the course repository.\n"
+        "# install it with its models and the packages it needs from the course repository.\n"
         "# Where it is installed already, this cell does nothing.\n"
         "import importlib, importlib.util, subprocess, sys\n"
         'if importlib.util.find_spec("labsupport") is None:\n'

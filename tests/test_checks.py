@@ -9,7 +9,9 @@ import inspect
 import pkgutil
 import sys
 import threading
+import time
 import types
+from functools import partial
 from pathlib import Path
 
 import mujoco
@@ -630,6 +632,32 @@ def test_finite_difference_jdot_tracks_and_never_scores_below_dropping_it(master
     assert fd_total == 6 and dropped_total < fd_total
 
 
+def test_the_tracking_limit_parts_right_laws_from_known_mistakes_on_every_circle():
+    """A law's tracking score must not depend on the circle the batch's secret seed draws: the
+    right law, and one whose J̇q̇ is 5 % off (graded as right), stay below the limit on every
+    circle; the law without J̇q̇ stays above it on every one (its error is 0.4-2.8 mm, and a limit
+    of 1 mm once passed it on some circles and failed it on others)."""
+    from labsupport.metrics import rms_norm
+
+    def os_jdot_off(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        return os_law(model, data, x_d, xd_d, xdd_d, Kp, Kd, 0.95 * site_jdot_qdot(model, data, SITE)[:3])
+
+    for seed in range(3):
+        center, radius, normal, q0, qdot0 = problem2.tracking_circle(seed)
+        ref = partial(circle_3d, center=center, radius=radius, normal=normal, frequency=problem2.FREQUENCY)
+
+        def args(t, ref=ref):
+            r = ref(t)
+            return r.pos, r.vel, r.acc, problem2.KP, problem2.KD
+
+        for law, right in ((os_law, True), (os_jdot_off, True), (os_no_jdot, False)):
+            probe = DirectProbe({"ct_op_torque": law})
+            log = common.run_student(probe, "ct_op_torque", args, problem2.TRACK_DURATION, q0, qdot0, reference=ref)
+            err = rms_norm(log.err)
+            assert (err < problem2.RMS_TOL) == right, (seed, law.__name__, err)
+            assert err < 0.6 * problem2.RMS_TOL if right else err > 1.5 * problem2.RMS_TOL, (seed, law.__name__, err)
+
+
 def test_a_poor_jdot_approximation_keeps_more_than_leaving_it_out():
     def rough(model, data, x_d, xd_d, xdd_d, Kp, Kd):
         return os_law(model, data, x_d, xd_d, xdd_d, Kp, Kd, 0.7 * site_jdot_qdot(model, data, SITE)[:3])
@@ -1022,3 +1050,65 @@ def test_no_installed_function_puts_the_3r_arm_on_a_target():
     assert "labsupport.kinematics.planar_2r.inverse_kinematics" in tried
     assert not (ROOT / "labsupport" / "kinematics" / "spatial_3r.py").exists()
     assert labsupport.__name__ == "labsupport"
+
+
+# --- what the messages say ---------------------------------------------------------------------------
+
+
+def test_an_ik_with_one_wrong_branch_is_told_which_target_and_branch(master1):
+    """The message names the first wrong solution's target and branch, once, without repeating
+    the label; the same failure on every call (the function is missing) is said once."""
+    right = master1["ik_3r"]
+
+    def down_is_up(x, elbow_up=True):
+        return right(x, elbow_up=True)
+
+    result = grade("p1_ik", ik_3r=down_is_up)
+    assert result.score == 0.5 and result.message.count("IK:") == 1, result
+    assert "5 of 10 solutions are right. The first wrong one, target [" in result.message
+    assert "elbow_up=False: the elbow-down call reaches the target, but with the elbow above" in result.message
+    assert str(result).startswith("◐ [p1_ik] (50 % of this check's points) IK: 5 of 10")
+    missing = grade("p1_ik")
+    assert missing.message == "IK: ik_3r is not defined: run its cell (above) first, or restore it if it was deleted"
+
+
+def test_a_computed_torque_that_inverts_the_mass_matrix_is_named(master1):
+    def ct_inverse_mass(model, data, q_d, Kp, Kd):
+        return np.linalg.solve(mass_matrix(model, data), Kp * (q_d - data.qpos) - Kd * data.qvel) + data.qfrc_bias
+
+    result = grade("p1_ct", ct_joint_torque=ct_inverse_mass)
+    assert result.score == 0.25 and "np.linalg.solve(M, v) is M⁻¹v" in result.message, result
+
+
+def test_a_singular_matrix_from_a_scratch_data_without_kinematics_gets_the_hint(master2):
+    """Forgetting mj_kinematics/mj_comPos on the scratch MjData leaves J(q_d) all zeros."""
+
+    def no_kinematics(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        scratch = mujoco.MjData(model)
+        scratch.qpos[:] = master2["ik_3r"](x_d)
+        J_d = site_jacobian(model, scratch, SITE)[:3]
+        return np.linalg.solve(J_d, xd_d)
+
+    result = grade("p2_ikct", ct_ik_joint_torque=no_kinematics)
+    assert result.score == 0 and "raised LinAlgError: Singular matrix" in result.message, result
+    assert "mujoco.mj_kinematics and mujoco.mj_comPos" in result.message
+
+
+def test_a_slow_law_is_told_the_batch_graders_cpu_budget(monkeypatch, capsys):
+    """The in-notebook check counts the CPU time of the student's calls and warns past half of
+    what the batch grader allows per check; a quick law gets no note."""
+    import labsupport.grading as grading
+
+    def slow_pd(model, data, q_d, Kp, Kd):
+        t0 = time.process_time()
+        while time.process_time() - t0 < 0.05:
+            pass
+        return Kp * (q_d - data.qpos) - Kd * data.qvel
+
+    monkeypatch.setattr(grading, "CHECK_CPU_SECONDS", 0.1)
+    grading.check("p1_pd", {"pd_torque": slow_pd})
+    out = capsys.readouterr().out
+    assert out.startswith("✔ [p1_pd]") and "Note: your functions took 0.2" in out
+    assert "s of CPU time in this check, more than the 0.1 s the batch grader gives them" in out
+    grading.check("p1_pd", {"pd_torque": lambda model, data, q_d, Kp, Kd: Kp * (q_d - data.qpos) - Kd * data.qvel})
+    assert "Note" not in capsys.readouterr().out

@@ -27,7 +27,14 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Mapping
 
-from labsupport.grading.feedback import DirectProbe, NotImplementedYet, Result, StudentError, as_vector
+from labsupport.grading.feedback import (
+    CHECK_CPU_SECONDS,
+    DirectProbe,
+    NotImplementedYet,
+    Result,
+    StudentError,
+    as_vector,
+)
 from labsupport.grading.stability import Trace, explain_divergence
 from labsupport.sim import SimulationDiverged
 
@@ -62,9 +69,27 @@ def check(name: str, namespace: dict) -> Result | None:
     checks = registry()
     if name not in checks:
         raise ValueError(f"no check named {name!r}; the checks are {sorted(checks)}")
-    result = checks[name](DirectProbe(namespace), PUBLIC_SEED)
+    probe = DirectProbe(namespace)
+    result = checks[name](probe, PUBLIC_SEED)
     print(result)
+    note = cpu_note(probe.cpu_seconds)
+    if note:
+        print(note)
     return result
+
+
+def cpu_note(seconds: float) -> str:
+    """A warning when the student's functions took more than half the CPU time the batch grader
+    gives them over one check (:data:`~labsupport.grading.feedback.CHECK_CPU_SECONDS`), else ``""``."""
+    if seconds <= CHECK_CPU_SECONDS / 2:
+        return ""
+    verdict = "more than" if seconds > CHECK_CPU_SECONDS else "over half of"
+    return (
+        f"  Note: your functions took {seconds:.3g} s of CPU time in this check, {verdict} the "
+        f"{CHECK_CPU_SECONDS:g} s the batch grader gives them per check (on a machine that may be slower "
+        "than this one); past that, the check scores zero there. Make them faster: a closed-form IK instead "
+        "of an optimiser, fewer iterations, no work repeated at every control step."
+    )
 
 
 class StudentController:

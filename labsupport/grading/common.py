@@ -199,6 +199,12 @@ def terms(model: mujoco.MjModel, q, qdot, t: float = 0.0) -> Terms:
     )
 
 
+#: What a law that inverts the mass matrix where it should multiply by it is told.
+INVERSE_MASS = (
+    "the law multiplies by M(q)⁻¹ where it should multiply by M(q): np.linalg.solve(M, v) is M⁻¹v, M @ v is M v."
+)
+
+
 @dataclass(frozen=True)
 class Mistake:
     """A typical wrong answer: the value it gives, what it means, and the score it keeps."""

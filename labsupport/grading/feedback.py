@@ -14,6 +14,7 @@ student's function sees exactly what it would see inside a simulation.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -23,6 +24,11 @@ from labsupport import validate
 from labsupport.grading.rules import ForbiddenUse, call_watched, forbidden_message, is_forbidden_message
 
 PASS, PARTIAL, FAIL, NOT_IMPLEMENTED = "pass", "partial", "fail", "not implemented yet"
+
+
+#: CPU time the batch grader gives the student's code over one check [s] (a simulation calls it
+#: at every control step); past it, that check scores zero there.
+CHECK_CPU_SECONDS = 60.0
 
 
 @dataclass(frozen=True)
@@ -43,7 +49,8 @@ class Result:
 
     def __str__(self) -> str:
         mark = {PASS: "✔", PARTIAL: "◐", FAIL: "✘", NOT_IMPLEMENTED: "…"}.get(self.status, "?")
-        return f"{mark} [{self.name}] {self.message}"
+        share = f"({100 * self.score:.0f} % of this check's points) " if self.status == PARTIAL else ""
+        return f"{mark} [{self.name}] {share}{self.message}"
 
     def _ipython_display_(self) -> None:
         """Show nothing as a cell's value: :func:`labsupport.grading.check` has already printed
@@ -188,6 +195,8 @@ class DirectProbe(Probe):
 
     namespace: dict
     _model: Any = field(default=None, repr=False)
+    #: CPU time the student's functions took in this probe's calls [s].
+    cpu_seconds: float = 0.0
 
     def _model_data(self, state: State):
         import mujoco
@@ -219,12 +228,15 @@ class DirectProbe(Probe):
         if not callable(fn):
             raise StudentError(f"{fname} should be a function, but it is a {type(fn).__name__}")
 
+        expanded = self._expand(args)
+
         def call_and_read():  # read as numbers under the watch too: an __array__ runs code
-            value = fn(*self._expand(args), **kwargs)
+            value = fn(*expanded, **kwargs)
             if validate.is_complex(value):
                 raise StudentError(complex_message(fname))
             return _plain(value, f"{fname} returned")
 
+        start = time.process_time()
         try:
             value, used = call_watched(call_and_read)
         except ForbiddenUse as err:
@@ -232,13 +244,30 @@ class DirectProbe(Probe):
         except StudentError:
             raise
         except Exception as err:  # the student's code may raise anything
-            raise StudentError(f"{fname} raised {type(err).__name__}: {err}") from None
+            raise StudentError(raised_text(fname, f"{type(err).__name__}: {err}")) from None
+        finally:
+            self.cpu_seconds += time.process_time() - start
         if used is not None:
             raise ForbiddenCall(forbidden_message(used))
         return value
 
     def get(self, name: str):
         return _plain(self._lookup(name), f"{name} is")
+
+
+#: Why a law's matrix may be singular where the arm is not: a scratch ``MjData`` whose positions
+#: were set but whose kinematics were not computed has a zero Jacobian.
+SINGULAR_HINT = (
+    " (a Jacobian computed on a scratch MjData is all zeros until, after setting its qpos, "
+    "mujoco.mj_kinematics and mujoco.mj_comPos have run; check it before solving)"
+)
+
+
+def raised_text(fname: str, error: str) -> str:
+    """What to say when the student's ``fname`` raised ``error`` (``"TypeName: message"``), with a
+    hint where the error has a common cause in this lab."""
+    hint = SINGULAR_HINT if error.startswith("LinAlgError") and "ingular" in error else ""
+    return f"{fname} raised {error}{hint}"
 
 
 def _plain(value, what: str):

@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from labsupport.grading.common import (
+    INVERSE_MASS,
     Mistake,
     arm_model,
     degrees_mistake,
@@ -105,11 +106,12 @@ def check_ik(probe: Probe, seed: int) -> Result:
     model = arm_model()
     rng = rng_for(seed, name)
     targets = [tip(model, draw_configuration(rng, elbow_up=bool(k % 2 == 0))) for k in range(N_TARGETS)]
-    good, total, problems, worst = 0, 0, [], 0.0
+    good, total, problems, errors, worst = 0, 0, [], [], 0.0
     for x in targets:
         sols = {}
         for up in (True, False):
             total += 1
+            where = f"target {np.round(x, 4)}, elbow_up={up}"
             try:
                 q = as_vector("ik_3r", probe.call("ik_3r", x, elbow_up=up), 3, "joint vector")
             except NotImplementedYet as err:
@@ -117,7 +119,8 @@ def check_ik(probe: Probe, seed: int) -> Result:
             except StudentError as err:
                 if forbidden_reason(err) is not None:
                     return refused(name, label, err)
-                problems.append(f"IK: {err}")
+                problems.append(f"{where}: {err}")
+                errors.append(str(err))
                 continue
             problem = _ik_problem(model, q, x, up)
             if problem is None:
@@ -125,13 +128,13 @@ def check_ik(probe: Probe, seed: int) -> Result:
                 sols[up] = q
                 worst = max(worst, float(np.linalg.norm(tip(model, q) - x)))
             else:
-                problems.append(f"IK: {problem}")
+                problems.append(f"{where}: {problem}")
         if (
             len(sols) == 2
             and np.allclose(tip(model, sols[True]), tip(model, sols[False]))
             and np.allclose(np.cos(sols[True] - sols[False]), 1.0)
         ):
-            problems.append("IK: elbow_up=True and elbow_up=False give the same solution")
+            problems.append(f"target {np.round(x, 4)}: elbow_up=True and elbow_up=False give the same solution")
     if good == total:
         return passed(
             name,
@@ -139,7 +142,10 @@ def check_ik(probe: Probe, seed: int) -> Result:
             f"end effector on the target, elbow on the side asked (worst error {worst:.1e} m)."
             + _unreachable_note(probe),
         )
-    return failed(name, f"IK: {good} of {total} solutions are right. " + problems[0], good / total)
+    if len(errors) == total and len(set(errors)) == 1:  # the same failure on every call: say it once
+        return failed(name, f"{label}: {errors[0]}")
+    first = "The first wrong one" if len(problems) > 1 else "The wrong one"
+    return failed(name, f"IK: {good} of {total} solutions are right. {first}, {problems[0]}", good / total)
 
 
 def _unreachable_note(probe: Probe) -> str:
@@ -250,6 +256,11 @@ def _ct_mistakes(T, state, q_d, Kp, Kd):
         ),
         "no_mass": Mistake(
             v + h, "h(q, q̇) is there, but the mass matrix is missing: multiply the PD term by M(q).", 0.25
+        ),
+        "inverse_mass": Mistake(
+            np.linalg.solve(M, v) + h,
+            INVERSE_MASS,
+            0.25,
         ),
         "sign": Mistake(M @ (-v) + h, "the feedback has the wrong sign: use e = q_d − q and −Kd q̇.", 0.0),
         "spring_sign": Mistake(

@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from labsupport.grading.feedback import (
+    CHECK_CPU_SECONDS,
     NOT_IMPLEMENTED,
     PASS,
     Probe,
@@ -50,6 +51,7 @@ from labsupport.grading.feedback import (
     StudentTimeout,
     complex_message,
     failed,
+    raised_text,
 )
 from labsupport.instructor import isolation
 
@@ -77,7 +79,7 @@ class Budget:
     cell: float = 30.0
     run: float = 120.0
     call: float = 10.0
-    check: float = 60.0
+    check: float = CHECK_CPU_SECONDS
     idle: float = 20.0
     run_idle: float = 60.0
     check_idle: float = 20.0
@@ -424,7 +426,7 @@ def _decode(name: str, answer: dict, call: bool = False):
         why = "used too much CPU time" if answer["timeout"] == "cpu" else "waited too long"
         raise StudentTimeout(f"{name} did not return: it {why}")
     if "raised" in answer:
-        raise StudentError(f"{name} raised {answer['raised']}")
+        raise StudentError(raised_text(name, answer["raised"]))
     if answer.get("none"):
         return None
     if answer.get("complex"):
