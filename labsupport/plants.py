@@ -1,6 +1,6 @@
 r"""Plants: the analytic single-joint arm (simulated with SciPy) and the MuJoCo models.
 
-The single joint obeys (Lynch & Park, Eq. 11.21)
+The single joint obeys [MR 11.21] (Lynch & Park, *Modern Robotics*)
 
 .. math:: \tau = M\ddot\theta + m g r\cos\theta + b\dot\theta = M\ddot\theta + h(\theta,\dot\theta)
 

@@ -607,17 +607,42 @@ def test_an_ik_that_changes_branch_along_the_circle_is_named(master1, master2):
 
 
 def test_a_run_that_leaves_its_branch_is_told_which_way():
-    """The poses a run logs tell the branch it left for: elbow down, or over the top."""
+    """The poses a run logs tell the branch it left for: elbow down, over the top, or a full turn
+    of the pan (the reference on the arm's own tip)."""
     model, rng = common.arm_model(), np.random.default_rng(11)
     front = [common.draw_configuration(rng, elbow_up=True) for _ in range(3)]
+    full_turn = front[2] + [2 * np.pi * np.sign(front[2][0]), 0.0, 0.0]
     for other, words in (
         (common.mirror_elbow(front[2]), "at t = 0.20 s the elbow was below the shoulder-to-tip line"),
         (common.over_the_top(front[2]), "at t = 0.20 s the arm faced away from its tip, on the over-the-top"),
+        (full_turn, "by t = 0.20 s the pan had swung round"),
     ):
         q = np.array([*front[:2], other])
-        log = types.SimpleNamespace(q=q, ee=np.array([tip_at(model, p) for p in q]), t=np.array([0.0, 0.1, 0.2]))
+        ee = np.array([tip_at(model, p) for p in q])
+        log = types.SimpleNamespace(q=q, ee=ee, ref=ee, t=np.array([0.0, 0.1, 0.2]))
         assert words in problem2._left_the_branch(model, log, every=1)
-        assert problem2._left_the_branch(model, types.SimpleNamespace(q=q[:2], ee=log.ee[:2], t=log.t[:2]), 1) is None
+        before = types.SimpleNamespace(q=q[:2], ee=ee[:2], ref=ee[:2], t=log.t[:2])
+        assert problem2._left_the_branch(model, before, 1) is None
+
+
+def test_an_ik_a_full_turn_off_is_named_by_the_tracking_run(master2):
+    """An IK that wraps q1 into [0, 2π) is right as kinematics, but where the circle's azimuth is
+    negative the joint CT swings the pan a full turn: the tracking run says so, not "over the top"."""
+    seed = 2
+    assert problem2.tracking_circle(seed)[3][0] < -np.pi / 2  # the arm starts at a negative azimuth
+    ik = master2["ik_3r"]
+
+    def ik_0_to_2pi(x, elbow_up=True):
+        q = ik(x, elbow_up)
+        return np.array([q[0] % (2 * np.pi), q[1], q[2]])
+
+    def ct_ik_joint_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        return ik_ct_law(model, data, x_d, xd_d, xdd_d, Kp, Kd, ik=ik_0_to_2pi)
+
+    track = grade("p2_track", seed, ct_op_torque=master2["ct_op_torque"], ct_ik_joint_torque=ct_ik_joint_torque)
+    assert track.score == 0.5, track
+    assert "the pan had swung round" in track.message and "a full turn (2π) from the arm's" in track.message
+    assert "over-the-top" not in track.message, track.message
 
 
 def test_finite_difference_jdot_tracks_and_never_scores_below_dropping_it(master2):

@@ -390,7 +390,20 @@ def tracking_circle(seed: int):
 
 def _left_the_branch(model, log, every: int = 10) -> str | None:
     """Where a run of IK + joint CT left the elbow-up solution facing the target (the branch the
-    arm starts on), found from the logged poses, or None if it kept to it."""
+    arm starts on), found from the logged poses, or None if it kept to it.
+
+    A pan angle more than three quarters of a turn from the reference's azimuth (which never
+    crosses ±π) comes first: an IK whose q1 is a full turn (2π) from the arm's makes the joint CT
+    swing the arm round, whatever branch it passes through on the way."""
+    pan_offset = log.q[:, 0] - np.arctan2(log.ref[:, 1], log.ref[:, 0])
+    turned = np.flatnonzero(np.abs(pan_offset) > 1.5 * np.pi)
+    if turned.size:
+        k = turned[0]
+        return (
+            f"by t = {log.t[k]:.2f} s the pan had swung round to q1 = {log.q[k, 0]:.2f} rad, "
+            f"{pan_offset[k]:+.2f} rad from the target's azimuth atan2(y, x): does the IK return a q1 a full "
+            "turn (2π) from the arm's, outside (−π, π]?"
+        )
     for q, x, t in zip(log.q[::every], log.ee[::every], log.t[::every], strict=True):
         if pan_turned_round(q, x):
             return (
@@ -437,7 +450,7 @@ def check_tracking(probe: Probe, seed: int) -> Result:
             notes.append(
                 f"{label}: RMS error {show_beside(err * 1e3, RMS_TOL * 1e3)} mm, should be below {RMS_TOL * 1e3:g} mm"
                 f"{'' if left else TRACKING_HINT}"
-                + (f" ({left} Take q1 = atan2(y, x) and the elbow-up branch at every point.)" if left else "")
+                + (f" ({left} Take q1 = atan2(y, x) and the elbow-up branch at every point)" if left else "")
             )
     with np.printoptions(precision=3, suppress=True):
         where = f"one turn of a circle of radius {radius:.3f} m about {center}, normal {normal}"
