@@ -258,9 +258,23 @@ def test_a_regrade_into_the_same_folder_leaves_no_stale_feedback(tmp_path):
     batch.run_batch(first, SPEC, out, jobs=1, unsafe_no_sandbox=True)
     (out / "feedback" / "my notes.txt").write_text("the instructor's own file", encoding="utf-8")
     second = _folder(tmp_path / "second", {"a.ipynb": b"x"})
-    batch.run_batch(second, SPEC, out, jobs=1, unsafe_no_sandbox=True)
+    batch.run_batch(second, SPEC, out, jobs=1, unsafe_no_sandbox=True, seed=2)
     assert set(_rows(out)) == {"a.ipynb"}
     assert sorted(p.name for p in (out / "feedback").iterdir()) == ["a.txt", "my notes.txt"]
+
+
+def test_a_regrade_into_the_same_folder_keeps_the_earlier_grades_and_seed(tmp_path):
+    """They used to be overwritten: grades perhaps already in Canvas, and the seed that reproduces them."""
+    out = tmp_path / "out"
+    first = _folder(tmp_path / "first", {"a.ipynb": b"x", "b.ipynb": b"x"})
+    batch.run_batch(first, SPEC, out, jobs=1, unsafe_no_sandbox=True, seed=1)
+    earlier = (out / "grades.csv").read_text(encoding="utf-8")
+    second = _folder(tmp_path / "second", {"a.ipynb": b"x"})
+    batch.run_batch(second, SPEC, out, jobs=1, unsafe_no_sandbox=True, seed=2)
+    assert (out / "previous" / "grades.csv").read_text(encoding="utf-8") == earlier
+    assert json.loads((out / "previous" / "batch.json").read_text(encoding="utf-8"))["seed"] == 1
+    assert json.loads((out / "batch.json").read_text(encoding="utf-8"))["seed"] == 2
+    assert set(_rows(out)) == {"a.ipynb"} and set(_rows(out / "previous")) == {"a.ipynb", "b.ipynb"}
 
 
 # --- the Canvas tool grades what the batch grades -----------------------------------------------

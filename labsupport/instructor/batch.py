@@ -319,14 +319,29 @@ def feedback_names(files: list[str]) -> dict[str, str]:
 
 def _write_results(out: Path, spec: dict, rows: list[dict], record: dict) -> None:
     """Write ``grades.csv``, a feedback file per row and ``batch.json`` into ``out``; then remove
-    the feedback files of an earlier batch (:func:`labsupport.instructor.canvas.remove_stale_feedback`)."""
+    the feedback files of an earlier batch (:func:`labsupport.instructor.canvas.remove_stale_feedback`).
+    An earlier batch's ``grades.csv`` and ``batch.json`` (its seed) move to ``out/previous/``
+    first, replacing what an even earlier one left there."""
     out = Path(out)
+    _keep_previous(out)
     _atomic_write(out / "grades.csv", grades_csv(spec, rows, record["seed"]))
     names = feedback_names([row["file"] for row in rows])
     for row in rows:
         _atomic_write(out / "feedback" / names[row["file"]], feedback_text(row["file"], spec, row))
     _atomic_write(out / "batch.json", json.dumps(record, indent=2) + "\n")
     remove_stale_feedback(out / "feedback", set(names.values()))
+
+
+def _keep_previous(out: Path) -> None:
+    """Move ``grades.csv`` and ``batch.json`` of an earlier batch into ``out/previous/``."""
+    earlier = [out / name for name in ("grades.csv", "batch.json") if (out / name).is_file()]
+    if not earlier:
+        return
+    previous = out / "previous"
+    previous.mkdir(exist_ok=True)
+    for path in earlier:
+        os.replace(path, previous / path.name)
+    print(f"the earlier batch's {' and '.join(p.name for p in earlier)} are now in {previous}")
 
 
 def _atomic_write(path: Path, text: str) -> None:
