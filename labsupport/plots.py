@@ -40,6 +40,19 @@ def course_style(rc: Mapping | None = None) -> None:
     plt.rcParams.update({"axes.prop_cycle": CURVE_CYCLE, **(rc or {})})
 
 
+#: Width of the book's text column in CSS pixels (on a screen 1280 px wide or more). A figure
+#: no wider shows at full size, so its labels keep the size Matplotlib gave them; a wider one
+#: is scaled down to fit, and its tick labels and legends with it.
+TEXT_COLUMN_PX = 752
+
+
+def column_width() -> float:
+    """The width in inches of a figure that fills the text column at Matplotlib's current
+    ``figure.dpi``: :data:`TEXT_COLUMN_PX` / dpi, less the 0.1 in that a notebook's inline
+    backend pads each side with (9.2 in at 80 dpi, 8.16 in at 90)."""
+    return TEXT_COLUMN_PX / plt.rcParams["figure.dpi"] - 0.2
+
+
 def _figure(figsize, nrows=1, ncols=1, **kwargs):
     """A pyplot figure with a 2-D array of axes."""
     return plt.subplots(nrows, ncols, figsize=figsize, squeeze=False, layout="constrained", **kwargs)
@@ -143,7 +156,7 @@ def single_joint_figure(
     order; the legend is on every side-by-side panel, on the top one when stacked.
     """
     n = len(quantities)
-    shape, size = ((1, n), (5 * n, 3.4)) if side_by_side else ((n, 1), (8, 1.1 + 1.8 * n))
+    shape, size = ((1, n), (column_width(), 3.4)) if side_by_side else ((n, 1), (column_width(), 1.1 + 1.8 * n))
     fig, axes = _figure(size, *shape, sharex=not side_by_side)
     axes = axes.ravel()
     for i, (ax, quantity) in enumerate(zip(axes, quantities, strict=True)):
@@ -167,7 +180,7 @@ def single_joint_figure(
 def closed_form_figure(panels: Mapping[str, Mapping[str, tuple]], ylabel: str):
     """Simulations (dots) on top of their closed forms (lines), one panel per title; each
     panel maps a label to ``(t, closed_form, simulated)``; the panels share the y axis."""
-    fig, axes = _figure((10, 3.6), 1, len(panels), sharey=True)
+    fig, axes = _figure((column_width(), 3.6), 1, len(panels), sharey=True)
     for ax, (title, curves) in zip(axes[0], panels.items(), strict=True):
         for label, (t, closed_form, simulated), style, color in _styled(curves):
             ax.plot(t, closed_form, style, color=color, label=label)
@@ -191,7 +204,7 @@ def reaching_figure(runs: Mapping[str, object], q_d, target, reach: tuple[float,
     :math:`q_{d,j} - q_j` (desired minus actual) in degrees, the two joint torques, then the
     end-effector path and the distance to the target in millimetres.
     """
-    fig, axes = _figure((9.2, 10.0), 3, 2)
+    fig, axes = _figure((column_width(), 10.0), 3, 2)
     target = np.asarray(target, dtype=float)
     for j in range(2):
         ax = axes[0, j]
@@ -224,22 +237,24 @@ def reaching_figure(runs: Mapping[str, object], q_d, target, reach: tuple[float,
 
 
 def circle_tracking_figure(runs: Mapping[str, object], desired_path):
-    r"""Task 3.2's three panels for several runs (``sim.Log`` with ``ee`` and ``err``): the
-    path against the desired circle, the norm of the Cartesian error in millimetres, and
-    the joint torques.
+    r"""Task 3.2's three panels for several runs (``sim.Log`` with ``ee`` and ``err``), sized to
+    the text column: on the left the path against the desired circle; on the right, stacked,
+    the norm of the Cartesian error in millimetres and the joint torques.
     """
-    fig, axes = _figure((12, 3.8), 1, 3)
-    ax = axes[0, 0]
+    fig, axes = plt.subplot_mosaic(
+        [["path", "error"], ["path", "torques"]], figsize=(column_width(), 6.0), layout="constrained"
+    )
+    ax = axes["path"]
     ax.plot(desired_path[:, 0], desired_path[:, 1], color="0.6", lw=REFERENCE_WIDTH, alpha=0.6, label="desired")
     for label, log, style, color in _styled(runs):
         ax.plot(log.ee[:, 0], log.ee[:, 1], style, color=color, lw=1.2, alpha=0.8, label=label)
     ax.set_aspect("equal")
     ax.set(xlabel="x [m]", ylabel="y [m]", title="end-effector path")
-    ax = axes[0, 1]
+    ax = axes["error"]
     for label, log, style, color in _styled(runs):
         ax.plot(log.t, 1000 * np.linalg.norm(log.err, axis=1), style, color=color, lw=1.2, label=label)
     ax.set(xlabel="time [s]", ylabel=r"$|x_d - x|$ [mm]", title="Cartesian error")
-    ax = axes[0, 2]
+    ax = axes["torques"]
     for (i, (label, log)), marker in zip(enumerate(runs.items()), itertools.cycle(_RUN_MARKERS)):
         for j, style in enumerate(("-", "--")):
             ax.plot(
@@ -253,9 +268,9 @@ def circle_tracking_figure(runs: Mapping[str, object], desired_path):
                 label=rf"{label} $\tau_{j + 1}$",
             )
     ax.set(xlabel="time [s]", ylabel=r"$\tau$ [N·m]", title="joint torques")
-    for ax in axes.flat:
+    for ax in axes.values():
         ax.grid(True, alpha=0.4)
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=8)
     return fig
 
 

@@ -138,15 +138,29 @@ def test_error_panels_show_desired_minus_actual():
     plt.close(fig)
 
 
-def test_the_reaching_figure_fits_the_text_column():
-    """At Task 3's 80 dpi the six panels are at most 752 px wide, the page's text column, so
-    the page shows them unscaled and their tick labels stay about 11 px tall."""
+@pytest.mark.parametrize("dpi", [80, 90])
+@pytest.mark.parametrize("name", ["reaching", "circle", "side_by_side", "stacked", "closed_form"])
+def test_the_shared_figures_fit_the_text_column(name, dpi):
+    """At the notebooks' dpi each figure is at most 752 px wide, the page's text column, as a
+    notebook's inline backend saves it (tight box, 0.1 in of padding): the page shows it
+    unscaled, so its tick labels and legends keep their size. The circle figure used to be
+    961 px wide and Task 1's side-by-side ones 910 px, shown at 78 % and 83 %."""
+    import dataclasses
     import io
 
     t = np.linspace(0.0, 1.0, 11)
-    with plt.rc_context({"figure.dpi": 80}):
-        fig = plots.reaching_figure({"PD": _log(t, 0.1, 2)}, [0.0, 0.0], [0.5, 0.5], (0.1, 1.0))
+    log = dataclasses.replace(_log(t, 0.1, 2), err=np.zeros((t.size, 2)))
+    make = {
+        "reaching": lambda: plots.reaching_figure({"PD": log}, [0.0, 0.0], [0.5, 0.5], (0.1, 1.0)),
+        "circle": lambda: plots.circle_tracking_figure({"OS-CT": log, "IK": log}, log.ee[:, :2]),
+        "side_by_side": lambda: plots.single_joint_figure({"a": log}, ["angle", "torque"], side_by_side=True),
+        "stacked": lambda: plots.single_joint_figure({"a": log}, ["angle", "rate", "torque"]),
+        "closed_form": lambda: plots.closed_form_figure({"p": {"a": (t, t, t)}, "q": {"b": (t, t, t)}}, "y"),
+    }
+    with plt.rc_context({"figure.dpi": dpi}):
+        fig = make[name]()
         buffer = io.BytesIO()
-        fig.savefig(buffer, format="png", bbox_inches="tight")
+        fig.savefig(buffer, format="png", bbox_inches="tight", pad_inches=0.1)
     plt.close(fig)
-    assert int.from_bytes(buffer.getvalue()[16:20], "big") <= 752
+    width = int.from_bytes(buffer.getvalue()[16:20], "big")
+    assert plots.TEXT_COLUMN_PX - 40 <= width <= plots.TEXT_COLUMN_PX, width

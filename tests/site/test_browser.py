@@ -183,3 +183,28 @@ def test_no_empty_line_under_a_heading(on_every_page, width):
     found = on_every_page(LONE_ANCHORS_JS, width)
     lone = {page: headings for page, headings in found.items() if headings}
     assert not lone, f"at {width} px these headings have an empty line under them: {lone}"
+
+
+#: ``[natural width, shown width, start of the alt text]`` of every figure a notebook cell shows.
+FIGURE_SCALE_JS = r"""async () => {
+  const out = [];
+  for (const img of document.querySelectorAll('.cell_output img')) {
+    img.loading = 'eager';
+    try { await img.decode(); } catch (e) {}
+    out.push([img.naturalWidth, img.getBoundingClientRect().width, (img.alt || '').slice(0, 50)]);
+  }
+  return out;
+}"""
+
+
+def test_figures_show_at_their_own_size(on_every_page):
+    """On a screen 1280 px wide every figure fits the text column as drawn, so its tick labels
+    and legends keep the size Matplotlib gave them (labsupport.plots.column_width); the circle
+    figure of Task 3 and the two-panel figures of Tasks 1, 2 and 4 used to be shrunk to 78-85 %."""
+    shown = on_every_page(FIGURE_SCALE_JS, 1280)
+    assert sum(len(figures) for figures in shown.values()) >= 15, shown  # 17 today, in Tasks 1-4
+    shrunk = {
+        page: [f"{alt}...: {n} px shown at {w:.0f} px" for n, w, alt in figures if w < n - 1]
+        for page, figures in shown.items()
+    }
+    assert not any(shrunk.values()), {page: found for page, found in shrunk.items() if found}
