@@ -10,7 +10,7 @@ The fixtures in tests/fixtures/canvas/ are synthetic but named and laid out as C
   each notebook carries the scores a fake grader returns for it, so the round trip is checked
   without running the real grader; :func:`test_end_to_end_with_the_real_batch_grader` runs it;
 * ``expected_import.csv``: what must come out: the export's identifying columns and the
-  Problem's column, filled.
+  Problem's column, filled, for the students with a new score only.
 """
 
 import csv
@@ -306,10 +306,12 @@ def test_the_import_holds_the_identifying_columns_and_the_problems_only(round_tr
     after = canvas.read_gradebook(out / "gradebook_import.csv")
     col = before.header.index(COLUMN)
     assert after.header == ["Student", "ID", "SIS User ID", "SIS Login ID", "Section", COLUMN]
-    assert after.student_rows == before.student_rows and after.points_row == before.points_row == 2
-    assert len(after.records) == len(before.records)
+    assert set(after.student_rows) == set(EXPECTED_CELLS) and after.points_row == before.points_row == 2
     user_of_row = {r: u for u, r in before.student_rows.items()}
-    for r, (old, new) in enumerate(zip(before.records, after.records, strict=True)):
+    kept = [r for r in range(len(before.records)) if r not in user_of_row or user_of_row[r] in EXPECTED_CELLS]
+    assert len(after.records) == len(kept)
+    for r, new in zip(kept, after.records, strict=True):
+        old = before.records[r]
         old_fields, old_end = canvas.split_fields(old, ",")
         new_fields, new_end = canvas.split_fields(new, ",")
         assert new_end == old_end and new_fields[:5] == old_fields[:5], f"record {r}"  # raw text, quotes kept
@@ -323,14 +325,13 @@ def test_the_import_holds_the_identifying_columns_and_the_problems_only(round_tr
     assert rows[2] == ["    Points Possible", "", "", "", "", "20.00"]
 
 
-def test_students_without_a_score_keep_their_exported_cell_never_zero(round_trip):
+def test_students_without_a_new_score_are_left_out_of_the_import_never_zero(round_trip):
+    """Their rows used to be kept with the exported cell, which put back what Canvas held at the
+    export over a grade entered since; left out, they keep whatever Canvas holds."""
     result, out, _ = round_trip
     after = canvas.read_gradebook(out / "gradebook_import.csv")
-    col = after.header.index(COLUMN)
-    assert after.cell(1237, col) == ""  # Nguyen: missing from the zip
-    assert after.cell(9999, col) == ""  # Canvas's Test Student
-    assert after.cell(1239, col) == ""  # Khan: the grader timed out
-    assert after.cell(1240, col) == "EX"  # Patel: excused in Canvas
+    for user in (1237, 9999, 1239, 1240):  # missing from the zip, Test Student, timed out, excused
+        assert user not in after.student_rows, user
     assert any("Nguyen, Linh (ID 1237)" in m for m in result.missing)
     assert any("Khan, Omar" in m and "timed out" in m for m in result.not_scored)
     assert any("Patel, Riya" in m and "EX" in m for m in result.not_scored)
@@ -433,7 +434,8 @@ def test_semicolons_bom_crlf_and_decimal_commas_survive(tmp_path):
     result = canvas.grade_canvas(FIXTURES / "submissions.zip", export, SPEC, tmp_path / "out", grade=fake_grade([]))
     assert result.points_possible == 20 and result.scores == EXPECTED_CELLS
     out = (tmp_path / "out" / "gradebook_import.csv").read_bytes()
-    assert out.startswith("\ufeff".encode()) and out.count(b"\r\n") == len(rows)
+    without_score = len(canvas.read_gradebook(export).student_rows) - len(EXPECTED_CELLS)
+    assert out.startswith("\ufeff".encode()) and out.count(b"\r\n") == len(rows) - without_score
     before, after = canvas.read_gradebook(export), canvas.read_gradebook(tmp_path / "out" / "gradebook_import.csv")
     assert after.delimiter == ";" and after.rows[0] == [*before.rows[0][:5], COLUMN]
     assert after.rows[2] == [*before.rows[2][:5], "20,00"]  # the Points Possible row, decimal comma kept
@@ -626,5 +628,5 @@ def test_end_to_end_with_the_real_batch_grader(tmp_path):
     assert result.scores == {1234: "20"}, (tmp_path / "out" / "report.txt").read_text()
     after = canvas.read_gradebook(tmp_path / "out" / "gradebook_import.csv")
     assert after.cell(1234, after.header.index(COLUMN)) == "20"
-    assert after.cell(1235, after.header.index(COLUMN)) == ""
+    assert list(after.student_rows) == [1234]  # Ana sent no notebook: left out of the import
     assert (tmp_path / "out" / "batch" / "grades.csv").is_file()

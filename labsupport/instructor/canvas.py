@@ -68,8 +68,9 @@ Gradebook export (``lib/gradebook_exporter.rb``) and import (``lib/gradebook_imp
   then SIS ids, then name; it skips the Points Possible and Manual Posting rows and ignores
   read-only columns; it updates only the columns the file holds; it reads ``;`` or ``,`` as the
   separator and a decimal comma or point;
-* a blank cell means "no score", so a student with no submission keeps the cell as exported
-  (empty unless Canvas already had a grade; never a 0, which would be a grade); the Points
+* it changes only the students the file holds, so a student with no new score (no submission,
+  a timed-out or failed grading, an excused cell) is left out of the file and keeps what Canvas
+  holds, even a grade entered after the export (never a 0, which would be a grade); the Points
   Possible row is kept as exported, and a score is scaled to the column's points possible
   when the Problem's checks add up to a different maximum.
 
@@ -109,7 +110,7 @@ MAX_ZIP_BYTES = 4 * 2**30
 MAX_ZIP_ENTRIES = 20_000
 
 #: Batch statuses whose scores go into the gradebook; any other status (timed out, grader
-#: error, or one this module does not know) leaves the cell as exported and is reported.
+#: error, or one this module does not know) leaves the student out of the import, and is reported.
 SCORED_STATUSES = ("graded", "unreadable")
 #: Longest message or note written into a feedback file, a CSV cell or a report [characters].
 MAX_MESSAGE_CHARS = 2000
@@ -553,14 +554,15 @@ def scaled_score(total: float, maximum: float, points_possible: float | None) ->
 
 
 def fill_column(gradebook: Gradebook, column: int, scores: dict[int, str]) -> str:
-    """The import's text: each record of the export cut to its identifying fields (``Student``
+    """The import's text: the records of the export cut to its identifying fields (``Student``
     to ``Section``) and ``column``, with ``scores`` (user id -> cell text) written into it.
 
-    Canvas's import updates only the columns the file holds: the export's other assignments
-    are left out, as their cells would put back what Canvas held when the export was made, over
-    any grade changed since. Every record is kept (the header, the Manual Posting and Points
-    Possible rows, each student), and each kept field's raw text and quotes, the separator, the
-    byte-order mark and the line endings are the export's.
+    Canvas's import updates only the columns and the students the file holds. The export's
+    other assignments, and the students with no score in ``scores``, are left out: their cells
+    would put back what Canvas held when the export was made, over any grade changed since.
+    The other records are kept (the header, the Manual Posting and Points Possible rows), and
+    each kept field's raw text and quotes, the separator, the byte-order mark and the line
+    endings are the export's.
     """
     user_of_row = {row: user for user, row in gradebook.student_rows.items()}
     out = [gradebook.bom]
@@ -571,6 +573,8 @@ def fill_column(gradebook: Gradebook, column: int, scores: dict[int, str]) -> st
             continue
         fields += [""] * (column + 1 - len(fields))
         user = user_of_row.get(r)
+        if user is not None and user not in scores:
+            continue  # no new score: Canvas keeps what it holds
         cell = scores[user] if user in scores else fields[column]
         out.append(gradebook.delimiter.join([*fields[: gradebook.first_assignment_column], cell]) + ending)
     return "".join(out)
@@ -694,7 +698,7 @@ def _select_submissions(
                 why = "a notebook" if f.is_notebook else "not a notebook"
                 result.not_graded.append(f"{who}: {f.entry} ({why}; not the file graded for {spec['problem']})")
         if pick is None:
-            result.missing.append(f"{who} (ID {user}): no notebook in the zip; the cell is left as exported")
+            result.missing.append(f"{who} (ID {user}): no notebook in the zip; left out of the import")
             continue
         chosen[user] = pick
         if pick.late:
@@ -711,7 +715,7 @@ def _select_submissions(
     for user in gradebook.student_rows:
         if user not in by_user:
             result.missing.append(
-                f"{gradebook.student_name(user)} (ID {user}): nothing in the zip; the cell is left as exported"
+                f"{gradebook.student_name(user)} (ID {user}): nothing in the zip; left out of the import"
             )
     return chosen
 
@@ -761,9 +765,7 @@ def _grade(
             by_user[user] = row
     for user in files.values():
         if user not in by_user:
-            result.not_scored.append(
-                f"{chosen[user].entry}: the grader returned no row for it; the cell is left as exported"
-            )
+            result.not_scored.append(f"{chosen[user].entry}: the grader returned no row for it; left out of the import")
     return by_user
 
 
@@ -788,13 +790,14 @@ def _record_scores(
         if row.get("status") not in SCORED_STATUSES:
             reason = "; ".join(row.get("notes", [])[:1])
             result.not_scored.append(
-                f"{who}: {f.original}: {row.get('status')} ({reason}); the cell is left "
-                "as exported: grade again or by hand"
+                f"{who}: {f.original}: {row.get('status')} ({reason}); left out of the import: grade again or by hand"
             )
             continue
         previous = gradebook.cell(user, col).strip()
         if previous.upper() in ("EX", "N/A"):
-            result.not_scored.append(f"{who}: the cell says {previous} in Canvas and is left so (score {score})")
+            result.not_scored.append(
+                f"{who}: the cell says {previous} in Canvas and is left so, out of the import (score {score})"
+            )
             continue
         if row.get("status") == "unreadable":
             reason = "; ".join(row.get("notes", [])[:1]) or "no reason given"
@@ -852,8 +855,8 @@ def report_text(gradebook: Gradebook, spec: dict, result: CanvasResult) -> str:
     sections = [
         ("Grades already in Canvas that this import replaces", result.replaced),
         ("Files that match no student of the gradebook (not graded)", result.unmatched),
-        ("Students with nothing graded (cell left as exported: empty unless Canvas had a grade)", result.missing),
-        ("Graded but not scored (cell left as exported)", result.not_scored),
+        ("Students with nothing graded (left out of the import: Canvas keeps what it holds)", result.missing),
+        ("Graded but not scored (left out of the import: Canvas keeps what it holds)", result.not_scored),
         ("Unreadable files (scored 0: ask the student for a notebook that opens, then grade again)", result.unreadable),
         ("Late submissions (graded; any late penalty is yours to apply)", result.late),
         ("Resubmissions graded (Canvas renames a re-uploaded file name-1, name-2, ...)", result.resubmissions),
