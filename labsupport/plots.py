@@ -53,8 +53,9 @@ def column_width() -> float:
     return TEXT_COLUMN_PX / plt.rcParams["figure.dpi"] - 0.2
 
 
-def _figure(figsize, nrows=1, ncols=1, **kwargs):
-    """A pyplot figure with a 2-D array of axes."""
+def _figure(height, nrows=1, ncols=1, **kwargs):
+    """A pyplot figure ``height`` inches tall that fills the text column, with a 2-D array of axes."""
+    figsize = (column_width(), height)
     return plt.subplots(nrows, ncols, figsize=figsize, squeeze=False, layout="constrained", **kwargs)
 
 
@@ -156,8 +157,8 @@ def single_joint_figure(
     order; the legend is on every side-by-side panel, on the top one when stacked.
     """
     n = len(quantities)
-    shape, size = ((1, n), (column_width(), 3.4)) if side_by_side else ((n, 1), (column_width(), 1.1 + 1.8 * n))
-    fig, axes = _figure(size, *shape, sharex=not side_by_side)
+    shape, height = ((1, n), 3.4) if side_by_side else ((n, 1), 1.1 + 1.8 * n)
+    fig, axes = _figure(height, *shape, sharex=not side_by_side)
     axes = axes.ravel()
     for i, (ax, quantity) in enumerate(zip(axes, quantities, strict=True)):
         single_joint_panel(
@@ -180,7 +181,7 @@ def single_joint_figure(
 def closed_form_figure(panels: Mapping[str, Mapping[str, tuple]], ylabel: str):
     """Simulations (dots) on top of their closed forms (lines), one panel per title; each
     panel maps a label to ``(t, closed_form, simulated)``; the panels share the y axis."""
-    fig, axes = _figure((column_width(), 3.6), 1, len(panels), sharey=True)
+    fig, axes = _figure(3.6, 1, len(panels), sharey=True)
     for ax, (title, curves) in zip(axes[0], panels.items(), strict=True):
         for label, (t, closed_form, simulated), style, color in _styled(curves):
             ax.plot(t, closed_form, style, color=color, label=label)
@@ -204,7 +205,7 @@ def reaching_figure(runs: Mapping[str, object], q_d, target, reach: tuple[float,
     :math:`q_{d,j} - q_j` (desired minus actual) in degrees, the two joint torques, then the
     end-effector path and the distance to the target in millimetres.
     """
-    fig, axes = _figure((column_width(), 10.0), 3, 2)
+    fig, axes = _figure(10.0, 3, 2)
     target = np.asarray(target, dtype=float)
     for j in range(2):
         ax = axes[0, j]
