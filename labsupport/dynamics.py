@@ -92,6 +92,34 @@ def mass_matrix(model: mujoco.MjModel, data: mujoco.MjData, out: np.ndarray | No
     return out
 
 
+def mass_times(model: mujoco.MjModel, data: mujoco.MjData, v: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    r"""The product :math:`M(q)\,v` of the joint-space inertia with a vector ``v`` (nv,).
+
+    MuJoCo's ``mj_mulM`` multiplies by the inertia it holds in sparse form, so the dense
+    :math:`M` is never formed: in a control loop this is about half the cost of
+    ``mass_matrix(model, data) @ v``, with the same result to rounding.
+
+    Args:
+        out: optional preallocated ``(nv,)`` float64 array to fill; a new array otherwise.
+
+    Example: the single joint, :math:`M = 0.5` kg·m², asked for 2 rad/s²: 1 N·m.
+
+    >>> from labsupport.plants import load_model
+    >>> model, data = load_model("single_joint")
+    >>> print(mass_times(model, data, [2.0]))
+    [1.]
+    """
+    if out is None:
+        out = np.empty(model.nv)
+    try:
+        mujoco.mj_mulM(model, data, out, v)
+    except TypeError:
+        validate.model_and_data(model, data)
+        validate.vector("v", v, (model.nv,))
+        raise _bad_out("mass_times", out, (model.nv,)) from None
+    return out
+
+
 def _bad_out(function: str, out, shape: tuple[int, ...]) -> ValueError:
     """The error for an ``out`` array that MuJoCo or NumPy refused to fill."""
     if isinstance(out, np.ndarray):
@@ -196,7 +224,9 @@ def site_jdot_qdot(
         raise _bad_out("site_jdot_qdot", out, (6,)) from None
 
 
-def jacobian_solve(J: np.ndarray, rhs: np.ndarray, min_pivot: float = 1e-10) -> np.ndarray:
+def jacobian_solve(
+    J: np.ndarray, rhs: np.ndarray, min_pivot: float = 1e-10, out: np.ndarray | None = None
+) -> np.ndarray:
     r""":math:`x = J^{-1} y` for a square task Jacobian, or a ``ValueError`` at a singular configuration.
 
     Computed as :math:`x = J^\top (J J^\top)^{-1} y` (equal to :math:`J^{-1}y` when :math:`J` is
@@ -206,6 +236,7 @@ def jacobian_solve(J: np.ndarray, rhs: np.ndarray, min_pivot: float = 1e-10) -> 
     entries is named as such where MuJoCo's factorisation reports them as rank loss (MuJoCo 4);
     MuJoCo 3 returns NaN instead, on which the loop then stops. The check is not made up
     front: in the control loop it would cost more than all the rest of this function's checks.
+    ``out`` is an optional preallocated ``(nv,)`` result.
     """
     J = np.ascontiguousarray(J, dtype=float)
     rhs = np.ascontiguousarray(rhs, dtype=float)
@@ -226,8 +257,11 @@ def jacobian_solve(J: np.ndarray, rhs: np.ndarray, min_pivot: float = 1e-10) -> 
             "target inside the workspace, away from its boundary"
         )
     mujoco.mju_cholSolve(z, JJt, rhs)
-    x = np.empty(nv)
-    mujoco.mju_mulMatTVec(x, J, z)
+    x = np.empty(nv) if out is None else out
+    try:
+        mujoco.mju_mulMatTVec(x, J, z)
+    except TypeError:
+        raise _bad_out("jacobian_solve", out, (nv,)) from None
     return x
 
 

@@ -179,7 +179,10 @@ def rotation_error(xmat, quat_d, out=None, work=None) -> np.ndarray:
     """
     quat, quat_d_inv = (np.empty(4), np.empty(4)) if work is None else work
     out = np.empty(3) if out is None else out
-    mujoco.mju_mat2Quat(quat, np.asarray(xmat, dtype=float).reshape(9))  # q of R
+    try:
+        mujoco.mju_mat2Quat(quat, xmat)  # q of R
+    except TypeError:  # a 3x3 matrix or a list: as 9 floats, row-major
+        mujoco.mju_mat2Quat(quat, np.asarray(xmat, dtype=float).reshape(9))
     try:
         mujoco.mju_negQuat(quat_d_inv, quat_d)  # q_d^-1
     except TypeError:

@@ -71,6 +71,20 @@ def test_mass_matrix_matches_mujoco_products(arm):
         np.testing.assert_allclose(dynamics.solve_mass(model, data, M @ x), x, atol=1e-10)
 
 
+def test_mass_times_is_the_dense_mass_matrix_times_the_vector(arm):
+    """mj_mulM on the sparse inertia against the dense M built column by column by mj_fullM."""
+    model, data = arm
+    rng = np.random.default_rng(6)
+    out = np.full(model.nv, np.nan)
+    for _ in range(20):
+        _set_state(model, data, rng)
+        v = rng.normal(size=model.nv)
+        expected = dynamics.mass_matrix(model, data) @ v
+        np.testing.assert_allclose(dynamics.mass_times(model, data, v), expected, rtol=1e-12, atol=1e-14)
+        assert dynamics.mass_times(model, data, list(v), out=out) is out
+        np.testing.assert_allclose(out, expected, rtol=1e-12, atol=1e-14)
+
+
 def test_mass_matrix_uses_the_mujoco3_signature_when_qM_exists(monkeypatch):
     """On MuJoCo 3.x mj_fullM is (model, dst, qM); the function must call it that way."""
     calls = []
@@ -234,6 +248,13 @@ def test_jdot_qdot_fills_out_and_returns_a_fresh_array_otherwise(arm):
     assert not np.allclose(first, 4.0 * first)
 
 
+def test_jacobian_solve_fills_out():
+    rng = np.random.default_rng(7)
+    J, y, out = rng.normal(size=(3, 3)), rng.normal(size=3), np.full(3, np.nan)
+    assert dynamics.jacobian_solve(J, y, out=out) is out
+    np.testing.assert_allclose(out, np.linalg.solve(J, y), rtol=1e-8, atol=1e-10)
+
+
 def test_jacobian_solve_takes_a_wide_jacobian_and_any_memory_layout():
     rng = np.random.default_rng(5)
     J, y = rng.normal(size=(2, 3)), rng.normal(size=2)
@@ -257,6 +278,9 @@ def test_jacobian_solve_names_the_shapes_it_needs():
         (lambda m, d: dynamics.mass_matrix(m, d, out=np.zeros((3, 3), order="F")), "not C-contiguous"),
         (lambda m, d: dynamics.site_jacobian(m, d, "tip", out=np.zeros((3, 3))), r"shape \(6, 3\), got"),
         (lambda m, d: dynamics.site_jdot_qdot(m, d, "tip", out=np.zeros(3)), r"shape \(6,\), got"),
+        (lambda m, d: dynamics.mass_times(m, d, np.ones(3), out=np.zeros(2)), r"mass_times: out .* shape \(3,\), got"),
+        (lambda m, d: dynamics.mass_times(m, d, np.ones(2)), r"v must have shape \(3,\)"),
+        (lambda m, d: dynamics.jacobian_solve(np.eye(3), np.ones(3), out=np.zeros(2)), r"jacobian_solve: out"),
         (lambda m, d: dynamics.solve_mass(m, d, np.zeros(2)), r"rhs must have shape \(3,\) or \(k, 3\), got \(2,\)"),
         (lambda m, d: dynamics.solve_mass(m, d, np.zeros((3, 3, 3))), r"got \(3, 3, 3\)"),
         (lambda m, d: dynamics.task_space_inertia(m, d, np.eye(3), damping=-1.0), "damping must be non-negative"),

@@ -9,7 +9,7 @@ per-joint arrays.
 
 from __future__ import annotations
 
-from labsupport.dynamics import mass_matrix
+from labsupport.dynamics import mass_times
 
 
 def pd_joint_torque(model, data, q_d, qdot_d, Kp, Kd):
@@ -34,7 +34,6 @@ def ct_joint_torque(model, data, q_d, qdot_d, qddot_d, Kp, Kd):
     :math:`\dot q_d = \ddot q_d = 0`.
     """
     q, qdot = data.qpos, data.qvel
-    M = mass_matrix(model, data)
     h = data.qfrc_bias
     qddot = qddot_d + Kd * (qdot_d - qdot) + Kp * (q_d - q)
-    return M @ qddot + h
+    return mass_times(model, data, qddot) + h

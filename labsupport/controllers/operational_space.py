@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from labsupport.dynamics import (
     jacobian_solve,
-    mass_matrix,
+    mass_times,
     site_id,
     site_jacobian,
     site_jdot_qdot,
@@ -50,4 +50,4 @@ def os_ct_torque(model, data, site, x_d, xdot_d, xddot_d, Kp, Kd):
         - site_jdot_qdot(model, data, site)[:d]
     )
     qddot = jacobian_solve(J, xddot)
-    return mass_matrix(model, data) @ qddot + data.qfrc_bias
+    return mass_times(model, data, qddot) + data.qfrc_bias

@@ -26,7 +26,7 @@ import numpy as np
 from labsupport import validate
 from labsupport.dynamics import (
     jacobian_solve,
-    mass_matrix,
+    mass_times,
     site_id,
     site_jacobian,
     site_jdot_qdot,
@@ -86,7 +86,8 @@ class PoseArrays:
         xdot_d, xddot_d: (6,) the target's twist and its rate (the angular parts
             stay zero: the target orientation is constant).
         jdot_qdot: (6,) :math:`\dot J\dot q`.
-        M: (nv, nv) the mass matrix.
+        qddot: (nv,) the joint acceleration :math:`\ddot q^*`.
+        Mqddot: (nv,) its product with the mass matrix, :math:`M\ddot q^*`.
     """
 
     J: np.ndarray
@@ -95,7 +96,8 @@ class PoseArrays:
     xdot_d: np.ndarray
     xddot_d: np.ndarray
     jdot_qdot: np.ndarray
-    M: np.ndarray
+    qddot: np.ndarray
+    Mqddot: np.ndarray
 
     @classmethod
     def for_model(cls, model: mujoco.MjModel) -> PoseArrays:
@@ -107,7 +109,8 @@ class PoseArrays:
             xdot_d=np.zeros(6),
             xddot_d=np.zeros(6),
             jdot_qdot=np.zeros(6),
-            M=np.zeros((nv, nv)),
+            qddot=np.zeros(nv),
+            Mqddot=np.zeros(nv),
         )
 
 
@@ -201,6 +204,6 @@ def tracking_torque(
         - gains.kp * e
         - jdot_qdot
     )
-    qddot = jacobian_solve(J, a)
-    M = mass_matrix(model, data, out=arrays.M)
-    return M @ qddot + implicit_inertia * qddot + data.qfrc_bias
+    qddot = jacobian_solve(J, a, out=arrays.qddot)
+    M_qddot = mass_times(model, data, qddot, out=arrays.Mqddot)
+    return M_qddot + implicit_inertia * qddot + data.qfrc_bias
