@@ -277,6 +277,34 @@ def test_a_regrade_into_the_same_folder_keeps_the_earlier_grades_and_seed(tmp_pa
     assert set(_rows(out)) == {"a.ipynb"} and set(_rows(out / "previous")) == {"a.ipynb", "b.ipynb"}
 
 
+def test_the_batch_writes_the_problems_rubric_beside_the_grades(tmp_path):
+    """The partial credit of each named mistake used to be in the checks' code only."""
+    out = tmp_path / "out"
+    batch.run_batch(_folder(tmp_path / "subs", {"a.ipynb": b"x"}), SPEC, out, jobs=1, unsafe_no_sandbox=True)
+    text = (out / "rubric.md").read_text(encoding="utf-8")
+    spec = json.loads(SPEC.read_text(encoding="utf-8"))
+    for c in spec["checks"]:
+        assert f"## {c['name']}: {c['title']} ({c['points']:g} point" in text
+    assert f"{sum(c['points'] for c in spec['checks']):g} points in all" in text
+    # p1_ct (3 points): leaving h out keeps a quarter, as the check gives (tests/test_checks.py)
+    assert "| 25 % (0.75 of 3) | M(q)(Kp e − Kd q̇) is right, but the bias term h(q, q̇)" in text
+
+
+def test_the_rubric_command_prints_or_writes_a_problems_rubric(tmp_path, capsys):
+    from labsupport.instructor import rubric
+
+    rubric.main(["--problem", "problem2", "--out", str(tmp_path / "r.md")])
+    text = (tmp_path / "r.md").read_text(encoding="utf-8")
+    assert text.startswith("# Grading rubric: problem2") and "## p2_track:" in text
+    # the IK + joint CT check names one mistake per full turn an angle may be off: one row for all
+    assert text.count("full turn (2π) away from the one nearest the arm") == 2  # elbow up, elbow down
+    rubric.main(["--problem", "problem1"])
+    assert capsys.readouterr().out.startswith("# Grading rubric: problem1")
+    with pytest.raises(SystemExit):
+        rubric.main(["--problem", "problem9"])
+    assert "the problems are problem1, problem2" in capsys.readouterr().err
+
+
 # --- the Canvas tool grades what the batch grades -----------------------------------------------
 
 

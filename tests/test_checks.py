@@ -232,17 +232,17 @@ def pd_variant(spring=1.0, damping=-1.0, scale=1.0, bias=False):
     return pd_torque
 
 
-@pytest.mark.parametrize(
-    "fn, score, words",
-    [
-        (pd_variant(spring=-1.0, damping=1.0), 0.0, "wrong sign: it pushes away"),
-        (pd_variant(spring=-1.0), 0.0, "spring term has the wrong sign"),
-        (pd_variant(damping=0.0), 0.5, "damping term −Kd q̇ is missing"),
-        (pd_variant(damping=1.0), 0.5, "damping has the wrong sign"),
-        (pd_variant(bias=True), 0.5, "computed torque's model term"),
-        (pd_variant(scale=180 / np.pi), 0.25, "degrees"),
-    ],
-)
+PD_MISTAKES = [
+    (pd_variant(spring=-1.0, damping=1.0), 0.0, "wrong sign: it pushes away"),
+    (pd_variant(spring=-1.0), 0.0, "spring term has the wrong sign"),
+    (pd_variant(damping=0.0), 0.5, "damping term −Kd q̇ is missing"),
+    (pd_variant(damping=1.0), 0.5, "damping has the wrong sign"),
+    (pd_variant(bias=True), 0.5, "computed torque's model term"),
+    (pd_variant(scale=180 / np.pi), 0.25, "degrees"),
+]
+
+
+@pytest.mark.parametrize("fn, score, words", PD_MISTAKES)
 def test_pd_mistakes_are_named(fn, score, words):
     result = grade("p1_pd", pd_torque=fn)
     assert result.score == score and words in result.message, result
@@ -258,18 +258,18 @@ def ct_variant(spring=1.0, damping=-1.0, mass=True, bias=1.0, scale=1.0, damping
     return ct_joint_torque
 
 
-@pytest.mark.parametrize(
-    "fn, score, words",
-    [
-        (ct_variant(bias=0.0), 0.25, "bias term h(q, q̇)"),
-        (ct_variant(mass=False), 0.25, "mass matrix is missing"),
-        (ct_variant(spring=-1.0), 0.0, "spring term has the wrong sign"),
-        (ct_variant(spring=-1.0, damping=1.0), 0.0, "feedback has the wrong sign"),
-        (ct_variant(bias=-1.0), 0.25, "added, not subtracted"),
-        (ct_variant(damping_outside=True), 0.5, "inside M(q)"),
-        (ct_variant(scale=180 / np.pi), 0.25, "degrees"),
-    ],
-)
+CT_MISTAKES = [
+    (ct_variant(bias=0.0), 0.25, "bias term h(q, q̇)"),
+    (ct_variant(mass=False), 0.25, "mass matrix is missing"),
+    (ct_variant(spring=-1.0), 0.0, "spring term has the wrong sign"),
+    (ct_variant(spring=-1.0, damping=1.0), 0.0, "feedback has the wrong sign"),
+    (ct_variant(bias=-1.0), 0.25, "added, not subtracted"),
+    (ct_variant(damping_outside=True), 0.5, "inside M(q)"),
+    (ct_variant(scale=180 / np.pi), 0.25, "degrees"),
+]
+
+
+@pytest.mark.parametrize("fn, score, words", CT_MISTAKES)
 def test_ct_mistakes_are_named(fn, score, words):
     result = grade("p1_ct", ct_joint_torque=fn)
     assert result.score == score and words in result.message, result
@@ -341,18 +341,19 @@ def test_ik_that_accepts_unreachable_targets_is_told(master1):
         assert result.score == 1 and f"returned {said} instead of raising a ValueError" in result.message, result
 
 
-@pytest.mark.parametrize(
-    "mistake, score, words",
-    [
-        ("no_jdot", 0.5, "−J̇q̇ term, which is missing"),
-        ("jdot_sign", 0.25, "must be subtracted"),
-        ("no_bias", 0.25, "bias term"),
-        ("transpose", 0.0, "not Jᵀ"),
-        ("no_ff", 0.25, "feed-forward acceleration ẍ_d"),
-        ("spring_sign", 0.0, "spring term has the wrong sign"),
-    ],
-)
-def test_os_ct_mistakes_are_named(mistake, score, words):
+OS_MISTAKES = [
+    ("no_jdot", 0.5, "−J̇q̇ term, which is missing"),
+    ("jdot_sign", 0.25, "must be subtracted"),
+    ("no_bias", 0.25, "bias term"),
+    ("transpose", 0.0, "not Jᵀ"),
+    ("no_ff", 0.25, "feed-forward acceleration ẍ_d"),
+    ("spring_sign", 0.0, "spring term has the wrong sign"),
+]
+
+
+def os_mistake(mistake):
+    """A student's OS-CT with one of :data:`OS_MISTAKES`."""
+
     def ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
         M, h = mass_matrix(model, data), bias_forces(data)
         J = site_jacobian(model, data, SITE)[:3]
@@ -368,8 +369,26 @@ def test_os_ct_mistakes_are_named(mistake, score, words):
             return M @ (J.T @ a) + h
         return M @ np.linalg.solve(J, a) + (0 if mistake == "no_bias" else h)
 
-    result = grade("p2_osct", ct_op_torque=ct_op_torque)
+    return ct_op_torque
+
+
+@pytest.mark.parametrize("mistake, score, words", OS_MISTAKES)
+def test_os_ct_mistakes_are_named(mistake, score, words):
+    result = grade("p2_osct", ct_op_torque=os_mistake(mistake))
     assert result.score == score and words in result.message, result
+
+
+def test_the_rubric_gives_each_named_mistake_the_credit_the_check_gives():
+    """Each wrong law above, graded: its feedback quotes exactly one row of the rubric, and that
+    row's credit is the score the check gave."""
+    from labsupport.instructor.rubric import mistake_credits
+
+    graded = [grade("p1_pd", pd_torque=fn) for fn, _, _ in PD_MISTAKES]
+    graded += [grade("p1_ct", ct_joint_torque=fn) for fn, _, _ in CT_MISTAKES]
+    graded += [grade("p2_osct", ct_op_torque=os_mistake(mistake)) for mistake, _, _ in OS_MISTAKES]
+    for result in graded:
+        quoted = [credit for credit, text in mistake_credits(result.name) if text.rstrip(".") in result.message]
+        assert quoted == [result.score], result
 
 
 def test_jdot_wording_says_what_the_problem_asks():

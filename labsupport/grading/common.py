@@ -273,6 +273,31 @@ def judge_torque(
     return Verdict(0.0, show_pair(got, expected), eps)
 
 
+def _power_of_ten(x: float) -> str:
+    """``1e-06`` as ``1e-6``."""
+    return f"{x:.0e}".replace("e-0", "e-")
+
+
+def formula_scoring(with_jdot: bool) -> str:
+    """How :func:`judge_torque` scores a law, in words, for the grading rubric."""
+    text = (
+        "The torque is compared with the formula (with MuJoCo's M, h"
+        + (", J and J̇q̇" if with_jdot else "")
+        + ") at drawn test states, and the first state where it differs decides. Equal to it within "
+        f"{_power_of_ten(TORQUE_RTOL)} (relative) or {_power_of_ten(TORQUE_ATOL)} N·m: full credit "
+        "(inv in place of solve lands here)"
+    )
+    if with_jdot:
+        text += (
+            f"; so is a torque whose implied J̇q̇ is within {100 * JDOT_APPROX:g} % of MuJoCo's (finite "
+            "differences, a numerical IK)"
+        )
+    text += ". A torque one of the named mistakes below reproduces keeps that mistake's credit"
+    if with_jdot:
+        text += "; a J̇q̇ approximated less well (relative error ε < 1) keeps 1 − ε/2"
+    return text + ". Anything else scores 0."
+
+
 def degrees_mistake(value_in_radians: np.ndarray, text: str = "", score: float = 0.25) -> Mistake:
     """The torque of a law computed with angles in degrees (180/π times the angle terms)."""
     return Mistake(

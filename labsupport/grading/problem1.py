@@ -25,6 +25,7 @@ from labsupport.grading.common import (
     degrees_mistake,
     draw_configuration,
     elbow_height,
+    formula_scoring,
     judge_torque,
     pan_error,
     pan_turned_round,
@@ -57,6 +58,9 @@ REACH_TOL = 1e-3  # final end-effector error the computed torque must reach [m]
 #: a numerical IK that stops at 1e-5 m passes).
 IK_TOL = 1e-4
 N_TARGETS = 5
+#: The ranges the formula checks draw their gains from: (Kp range, Kd range).
+PD_GAINS = ((100, 500), (10, 60))
+CT_GAINS = ((50, 150), (5, 25))
 
 
 def _branch(up: bool) -> str:
@@ -237,7 +241,7 @@ def _pd_mistakes(T, state, q_d, Kp, Kd):
 def check_pd(probe: Probe, seed: int) -> Result:
     """``pd_torque`` against :math:`K_p(q_d-q) - K_d\\dot q` at seeded states."""
     return _check_joint_law(
-        probe, seed, "p1_pd", "PD", "pd_torque", ((100, 500), (10, 60)), pd_law, _pd_mistakes, "Kp (q_d − q) − Kd q̇"
+        probe, seed, "p1_pd", "PD", "pd_torque", PD_GAINS, pd_law, _pd_mistakes, "Kp (q_d − q) − Kd q̇"
     )
 
 
@@ -286,7 +290,7 @@ def check_ct(probe: Probe, seed: int) -> Result:
         "p1_ct",
         "CT",
         "ct_joint_torque",
-        ((50, 150), (5, 25)),
+        CT_GAINS,
         ct_law,
         _ct_mistakes,
         "M(q)(Kp e − Kd q̇) + h(q, q̇)",
@@ -322,3 +326,28 @@ def check_reach(probe: Probe, seed: int) -> Result:
 
 
 CHECKS = {"p1_ik": check_ik, "p1_pd": check_pd, "p1_ct": check_ct, "p1_reach": check_reach}
+
+
+def named_mistakes(check: str, seed: int) -> dict[str, Mistake]:
+    """The mistakes the formula check ``check`` (``p1_pd`` or ``p1_ct``) names, with their credit,
+    built at its first test state: what the grading rubric lists."""
+    mistakes, gains = {"p1_pd": (_pd_mistakes, PD_GAINS), "p1_ct": (_ct_mistakes, CT_GAINS)}[check]
+    state, q_d, Kp, Kd = _joint_law_cases(seed, check, gains)[0]
+    return mistakes(terms(arm_model(), state.q, state.qdot), state, q_d, Kp, Kd)
+
+
+#: How each check scores, for the grading rubric (the named mistakes come from the checks).
+SCORING = {
+    "p1_ik": (
+        f"The student's ik_3r is called on {N_TARGETS} drawn reachable targets, each with elbow_up=True "
+        f"and False: the share of the {2 * N_TARGETS} solutions that put the tip within {IK_TOL * 1e3:g} mm "
+        "of the target (by MuJoCo's forward kinematics), on the elbow side asked, with the pan facing the "
+        "target. A target out of reach that does not raise ValueError gets a remark, no deduction."
+    ),
+    "p1_pd": formula_scoring(with_jdot=False),
+    "p1_ct": formula_scoring(with_jdot=False),
+    "p1_reach": (
+        f"All or nothing: the student's ct_joint_torque, run from the Problem's start for {DURATION:g} s toward a "
+        f"drawn target, must end within {REACH_TOL * 1e3:g} mm of it."
+    ),
+}

@@ -34,6 +34,7 @@ from labsupport.grading.common import (
     call_along,
     draw_configuration,
     elbow_height,
+    formula_scoring,
     judge_torque,
     mirror_elbow,
     over_the_top,
@@ -186,6 +187,16 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
     }
 
 
+def _os_case(model, case: Case):
+    """At the case's tested state: OS-CT's torque, the J̇q̇ a torque implies, MuJoCo's J̇q̇ and the
+    named mistakes."""
+    state = case.states[-1]
+    T = terms(model, state.q, state.qdot, state.t)
+    ref = (case.x_d[-1], case.xd_d[-1], case.xdd_d[-1], case.Kp, case.Kd)
+    expected, implied, fb = _os_expected(T, state, *ref)
+    return expected, implied, T.jdq, _os_mistakes(model, T, state, *ref, fb)
+
+
 def check_os_ct(probe: Probe, seed: int) -> Result:
     """``ct_op_torque`` against the operational-space computed torque at seeded states."""
     name, label, fname = "p2_osct", "OS-CT", "ct_op_torque"
@@ -196,15 +207,11 @@ def check_os_ct(probe: Probe, seed: int) -> Result:
             tau = call_along(probe, fname, case, lambda k, c=case: (c.x_d[k], c.xd_d[k], c.xdd_d[k], c.Kp, c.Kd))
         except StudentError as err:
             return refused(name, label, err)
-        state = case.states[-1]
-        T = terms(model, state.q, state.qdot, state.t)
-        ref = (case.x_d[-1], case.xd_d[-1], case.xdd_d[-1], case.Kp, case.Kd)
-        expected, implied, fb = _os_expected(T, state, *ref)
-        mistakes = _os_mistakes(model, T, state, *ref, fb)
+        expected, implied, jdq, mistakes = _os_case(model, case)
         if case.still:
             verdict = judge_torque(tau, expected, mistakes, rtol=STILL_RTOL)
         else:
-            verdict = judge_torque(tau, expected, mistakes, implied, T.jdq)
+            verdict = judge_torque(tau, expected, mistakes, implied, jdq)
         if verdict.score < 1:
             return failed(name, f"{label}: {_where(case, 'the arm', verdict.text)}", verdict.score)
         worst = max(worst, verdict.jdot_error or 0.0)
@@ -315,6 +322,24 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
     }
 
 
+def _ik_case(model, case: Case):
+    """At the case's tested state: IK + joint CT's torque, the J̇q̇ a torque implies, MuJoCo's J̇q̇
+    at the reference and the named mistakes."""
+    state = case.states[-1]
+    T = terms(model, state.q, state.qdot, state.t)
+    q_d, qd_d, qdd_d = case.q_d[-1], case.qd_d[-1], case.qdd_d[-1]
+    x_d, xd_d, xdd_d = case.x_d[-1], case.xd_d[-1], case.xdd_d[-1]
+    Kp, Kd = case.Kp, case.Kd
+    expected = T.M @ (qdd_d + Kd * (qd_d - state.qdot) + Kp * (q_d - state.q)) + T.h
+    Td = terms(model, q_d, qd_d)
+
+    def implied_jdq(tau):
+        qdd = np.linalg.solve(T.M, tau - T.h) - Kd * (qd_d - state.qdot) - Kp * (q_d - state.q)
+        return xdd_d - Td.J @ qdd
+
+    return expected, implied_jdq, Td.jdq, _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd)
+
+
 def check_ik_ct(probe: Probe, seed: int) -> Result:
     """``ct_ik_joint_torque`` against IK + joint-space computed torque at seeded states."""
     name, label, fname = "p2_ikct", "IK+JS-CT", "ct_ik_joint_torque"
@@ -325,23 +350,11 @@ def check_ik_ct(probe: Probe, seed: int) -> Result:
             tau = call_along(probe, fname, case, lambda k, c=case: (c.x_d[k], c.xd_d[k], c.xdd_d[k], c.Kp, c.Kd))
         except StudentError as err:
             return refused(name, label, err)
-        state = case.states[-1]
-        T = terms(model, state.q, state.qdot, state.t)
-        q_d, qd_d, qdd_d = case.q_d[-1], case.qd_d[-1], case.qdd_d[-1]
-        x_d, xd_d, xdd_d = case.x_d[-1], case.xd_d[-1], case.xdd_d[-1]
-        Kp, Kd = case.Kp, case.Kd
-        expected = T.M @ (qdd_d + Kd * (qd_d - state.qdot) + Kp * (q_d - state.q)) + T.h
-        Td = terms(model, q_d, qd_d)
-
-        def implied_jdq(tau, T=T, Td=Td, q_d=q_d, qd_d=qd_d, xdd_d=xdd_d, Kp=Kp, Kd=Kd, state=state):
-            qdd = np.linalg.solve(T.M, tau - T.h) - Kd * (qd_d - state.qdot) - Kp * (q_d - state.q)
-            return xdd_d - Td.J @ qdd
-
-        mistakes = _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd)
+        expected, implied, jdq, mistakes = _ik_case(model, case)
         if case.still:
             verdict = judge_torque(tau, expected, mistakes, rtol=STILL_RTOL)
         else:
-            verdict = judge_torque(tau, expected, mistakes, implied_jdq, Td.jdq)
+            verdict = judge_torque(tau, expected, mistakes, implied, jdq)
         if verdict.score < 1:
             text = verdict.text
             if verdict.score == 0 and text.startswith("got"):
@@ -463,3 +476,27 @@ def check_tracking(probe: Probe, seed: int) -> Result:
 
 
 CHECKS = {"p2_start": check_start, "p2_osct": check_os_ct, "p2_ikct": check_ik_ct, "p2_track": check_tracking}
+
+
+def named_mistakes(check: str, seed: int) -> dict[str, Mistake]:
+    """The mistakes the formula check ``check`` (``p2_osct`` or ``p2_ikct``) names, with their
+    credit, built at its first moving test state: what the grading rubric lists."""
+    case_of, still = {"p2_osct": (_os_case, "arm"), "p2_ikct": (_ik_case, "reference")}[check]
+    case = next(c for c in tracking_cases(seed, check, still=still) if not c.still)
+    return case_of(arm_model(), case)[-1]
+
+
+#: How each check scores, for the grading rubric (the named mistakes come from the checks).
+SCORING = {
+    "p2_start": (
+        f"The student's q0_traj must put the tip within {START_TOL * 1e3:g} mm of the notebook circle's start "
+        "point: full credit elbow up and facing it; half elbow down or with the pan half a turn round; 0 "
+        "otherwise (in degrees too)."
+    ),
+    "p2_osct": formula_scoring(with_jdot=True),
+    "p2_ikct": formula_scoring(with_jdot=True),
+    "p2_track": (
+        f"Each of the two controllers runs one {TRACK_DURATION:g} s turn of a drawn circle from a start on it: half "
+        f"the credit for each whose RMS position error stays below {RMS_TOL * 1e3:g} mm."
+    ),
+}

@@ -14,7 +14,8 @@ Usage (from the repository root)::
 reason saying to ask for it again); the other files and the subfolders are named on stderr,
 left aside and listed in ``OUT/batch.json`` (a subfolder holding notebooks says how many).
 ``OUT/batch.json`` also records the seed, the spec, the date and the versions, so that
-``--seed`` reproduces every grade. A row whose grading failed ("error") or ran out of wall-clock
+``--seed`` reproduces every grade; ``OUT/rubric.md`` says how each check scores and what
+partial credit each mistake it names keeps. A row whose grading failed ("error") or ran out of wall-clock
 time ("timed out: regrade") gets no score, never a zero. Every message is written on one line,
 without control characters (student code writes into them); the files are the owner's alone
 when run as a command, and feedback files left in OUT by an earlier batch are removed.
@@ -73,6 +74,7 @@ from labsupport.instructor.canvas import (
     seed_argument,
     without_outputs,
 )
+from labsupport.instructor.rubric import rubric
 
 #: The note every row carries when the batch ran without a sandbox.
 UNSAFE_NOTE = "graded WITHOUT a sandbox (--unsafe-no-sandbox): only for submissions you trust"
@@ -318,7 +320,8 @@ def feedback_names(files: list[str]) -> dict[str, str]:
 
 
 def _write_results(out: Path, spec: dict, rows: list[dict], record: dict) -> None:
-    """Write ``grades.csv``, a feedback file per row and ``batch.json`` into ``out``; then remove
+    """Write ``grades.csv``, a feedback file per row, ``batch.json`` and the Problem's grading
+    rubric ``rubric.md`` (:mod:`labsupport.instructor.rubric`) into ``out``; then remove
     the feedback files of an earlier batch (:func:`labsupport.instructor.canvas.remove_stale_feedback`).
     An earlier batch's ``grades.csv`` and ``batch.json`` (its seed) move to ``out/previous/``
     first, replacing what an even earlier one left there."""
@@ -329,6 +332,7 @@ def _write_results(out: Path, spec: dict, rows: list[dict], record: dict) -> Non
     for row in rows:
         _atomic_write(out / "feedback" / names[row["file"]], feedback_text(row["file"], spec, row))
     _atomic_write(out / "batch.json", json.dumps(record, indent=2) + "\n")
+    _atomic_write(out / "rubric.md", rubric(spec))
     remove_stale_feedback(out / "feedback", set(names.values()))
 
 

@@ -1,0 +1,118 @@
+"""The grading rubric of a Problem, in words, made from the checks themselves.
+
+Usage::
+
+    .venv/bin/python -m labsupport.instructor.rubric --problem problem1            # print it
+    .venv/bin/python -m labsupport.instructor.rubric --problem problem2 --out rubric.md
+
+For each check of the Problem's autograder spec it gives the points, how the check scores, and
+the mistakes the check names in its feedback with the credit each keeps (the ◐ marks). The
+scoring rules are each check module's ``SCORING``; the mistakes are built by the checks' own
+code (``named_mistakes``), so the rubric cannot drift from what the grader does. The batch
+grader writes the same text to ``rubric.md`` beside ``grades.csv``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from labsupport import __version__
+from labsupport.grading import PUBLIC_SEED, problem1, problem2
+from labsupport.grading.rules import FORBIDDEN
+from labsupport.instructor.assign import SPECS
+from labsupport.instructor.judge import DEFAULT_BUDGET
+
+_MODULES = (problem1, problem2)
+
+
+def _module_of(check: str):
+    """The check module that defines ``check``."""
+    for module in _MODULES:
+        if check in module.CHECKS:
+            return module
+    raise ValueError(f"no check named {check!r}; the checks are {sorted(c for m in _MODULES for c in m.CHECKS)}")
+
+
+def mistake_credits(check: str) -> list[tuple[float, str]]:
+    """``(credit, explanation)`` of each mistake the formula check ``check`` names, highest credit
+    first, one row per explanation (the IK + joint CT check names one per full turn an angle may be
+    off; they share a row). Empty for a check that names none."""
+    module = _module_of(check)
+    if not hasattr(module, "named_mistakes"):
+        return []
+    try:
+        mistakes = module.named_mistakes(check, PUBLIC_SEED)
+    except KeyError:  # not one of that module's formula checks
+        return []
+    rows = dict.fromkeys((m.score, m.text) for m in mistakes.values())
+    return sorted(rows, key=lambda row: -row[0])
+
+
+def _points(credit: float, points: float) -> str:
+    return f"{100 * credit:g} % ({credit * points:g} of {points:g})"
+
+
+def _sentence(text: str) -> str:
+    """``text`` with a capital first letter and a full stop."""
+    text = text[:1].upper() + text[1:]
+    return text if text.endswith((".", ")")) else text + "."
+
+
+def _cell(text: str) -> str:
+    """Text safe inside a Markdown table cell."""
+    return text.replace("|", "\\|").replace("\n", " ")
+
+
+def rubric(spec: dict) -> str:
+    """The rubric of the Problem an autograder spec describes, as Markdown."""
+    checks = spec["checks"]
+    total = sum(c["points"] for c in checks)
+    budget = DEFAULT_BUDGET
+    lines = [
+        f"# Grading rubric: {spec['problem']}",
+        "",
+        f"Made by labsupport {__version__} from the checks the batch grader runs. {total:g} points in all.",
+        "",
+        "On every check:",
+        "",
+        "- a TODO answered by calling into labsupport's controllers, kinematics or checks "
+        f"({', '.join(f'`{m}`' for m in FORBIDDEN)}) scores 0, with the reason;",
+        "- a function that is missing, raises, returns a wrong shape or NaN, or runs past its limits "
+        f"({budget.call:g} s of CPU per call, {budget.check:g} s over the check) scores 0 on that check, "
+        "the others keep their points;",
+        "- the test states, targets and circles are drawn from the batch's secret seed.",
+    ]
+    for c in checks:
+        module = _module_of(c["name"])
+        points = f"{c['points']:g} point" + ("" if c["points"] == 1 else "s")
+        lines += ["", f"## {c['name']}: {c['title']} ({points})", "", module.SCORING[c["name"]]]
+        rows = mistake_credits(c["name"])
+        if rows:
+            lines += ["", "| Credit kept | Mistake, as the feedback names it |", "| --- | --- |"]
+            lines += [f"| {_points(credit, c['points'])} | {_cell(_sentence(text))} |" for credit, text in rows]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(
+        prog="python -m labsupport.instructor.rubric", description="Write the grading rubric of a Problem."
+    )
+    parser.add_argument("--problem", required=True, help="the Problem, as its autograder spec is named (problem1)")
+    parser.add_argument("--out", type=Path, help="file to write (default: print)")
+    args = parser.parse_args(argv)
+    spec_path = SPECS / f"{args.problem}.json"
+    if not spec_path.is_file():
+        known = sorted(p.stem for p in SPECS.glob("*.json"))
+        parser.error(f"no autograder spec for --problem {args.problem}: the problems are {', '.join(known)}")
+    text = rubric(json.loads(spec_path.read_text(encoding="utf-8")))
+    if args.out is None:
+        sys.stdout.write(text)
+    else:
+        args.out.write_text(text, encoding="utf-8")
+
+
+if __name__ == "__main__":
+    main()
