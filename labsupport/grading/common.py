@@ -290,7 +290,8 @@ def formula_scoring(with_jdot: bool) -> str:
     if with_jdot:
         text += (
             f"; so is a torque whose implied J̇q̇ is within {100 * JDOT_APPROX:g} % of MuJoCo's (finite "
-            "differences, a numerical IK)"
+            "differences, a numerical IK), and, at a test state where the arm or the reference is "
+            f"momentarily at rest (J̇q̇ zero), one within {_power_of_ten(STILL_RTOL)} (relative)"
         )
     text += ". A torque one of the named mistakes below reproduces keeps that mistake's credit"
     if with_jdot:
