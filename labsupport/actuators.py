@@ -6,7 +6,8 @@ whose force on its joint is
 
 .. math:: f = k_p\,u - k_p\,q - k_v\,\dot q, \qquad |f| \le f_{\max}, \quad u \in [u_{\min}, u_{\max}]
 
-for the command :math:`u`. Inverting it once per step (:func:`servo_ctrl`) makes the servo exert
+for the command :math:`u`, which MuJoCo clamps to ``ctrlrange`` first (and :math:`f` to
+``forcerange``). Inverting it once per step (:func:`servo_ctrl`) makes the servo exert
 the torque a controller asks for; :func:`servo_actuation` is that inversion in the form the
 loop applies, ``actuation(model, data, tau) -> ctrl``.
 
@@ -76,10 +77,12 @@ class Servo:
 def servo_ctrl(servo: Servo, q, qdot, tau, out: np.ndarray | None = None) -> np.ndarray:
     r"""The command that makes the servo exert the torque ``tau`` (the servo inverted):
 
-    .. math:: u = \operatorname{clip}\big(q + \tfrac{k_v}{k_p}\dot q + \tfrac{\tau}{k_p},\; u_{\min}, u_{\max}\big)
+    .. math:: u = q + \tfrac{k_v}{k_p}\dot q + \tfrac{\tau}{k_p}
 
-    Away from the clamps the servo's force :math:`k_p(u - q) - k_v\dot q` is exactly ``tau``.
-    Works row by row on arrays of shape ``(N, nu)``; ``out`` is an optional preallocated result.
+    The servo's force :math:`k_p(u - q) - k_v\dot q` is then exactly ``tau``, unless MuJoCo
+    clamps: the command to ``ctrlrange`` or the force to ``forcerange``, as it does for every
+    limited actuator (:func:`servo_force` clamps both the same way). Works row by row on arrays
+    of shape ``(N, nu)``; ``out`` is an optional preallocated result.
 
     Example: one servo without limits; the command makes it exert the 12 N·m asked for.
 
@@ -95,16 +98,18 @@ def servo_ctrl(servo: Servo, q, qdot, tau, out: np.ndarray | None = None) -> np.
     u += tau  # k_v qdot + tau
     u /= servo.kp  # (k_v qdot + tau) / k_p
     u += q  # q + (k_v qdot + tau) / k_p
-    return np.minimum(np.maximum(u, servo.ctrl_lo, out=u), servo.ctrl_hi, out=u)
+    return u
 
 
 def servo_force(servo: Servo, q, qdot, ctrl) -> np.ndarray:
-    r"""The torque the servo exerts, :math:`\operatorname{clip}(k_p(u - q) - k_v\dot q,\ f_{\min}, f_{\max})`.
+    r"""The torque the servo exerts for the command ``ctrl``, as MuJoCo computes it: the command
+    clamped to ``ctrlrange``, then :math:`\operatorname{clip}(k_p(u - q) - k_v\dot q,\ f_{\min}, f_{\max})`.
 
     Row by row on arrays of shape ``(N, nu)``: with a :class:`labsupport.sim.Log`,
     ``servo_force(servo, log.q, log.qdot, log.ctrl)`` is the torque each step applied.
     """
-    f = servo.kp * (np.asarray(ctrl) - q) - servo.kv * np.asarray(qdot)
+    u = np.clip(np.asarray(ctrl, dtype=float), servo.ctrl_lo, servo.ctrl_hi)
+    f = servo.kp * (u - q) - servo.kv * np.asarray(qdot)
     return np.clip(f, servo.force_lo, servo.force_hi)
 
 

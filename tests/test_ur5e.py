@@ -194,12 +194,22 @@ def test_servo_force_is_clamped_to_forcerange(ur):
     np.testing.assert_allclose(servo_force(servo, data.qpos, data.qvel, data.ctrl), servo.force_hi)
 
 
-def test_servo_command_is_clamped_to_ctrlrange(ur):
+def test_mujoco_clamps_the_command_to_ctrlrange_and_servo_force_does_too(ur):
+    """The inversion asks for u beyond ctrlrange near the range's end; MuJoCo holds u at the end,
+    and the servo pulls with kp (u_max - q) only, inside its force range."""
     model, _ = ur
+    data = mujoco.MjData(model)
     servo = Servo.from_model(model)
-    q = np.zeros(6)
-    ctrl = servo_ctrl(servo, q, np.zeros(6), 1e6 * servo.kp)  # asks for u = q + 1e6 rad
-    np.testing.assert_array_equal(ctrl, servo.ctrl_hi)
+    data.qpos[:] = servo.ctrl_hi - 0.005  # 5 mrad short of the command's upper limit
+    mujoco.mj_forward(model, data)
+    ctrl = servo_ctrl(servo, data.qpos, data.qvel, 0.5 * servo.force_hi)  # asks u = q + f/(2 kp)
+    assert np.all(ctrl > servo.ctrl_hi)
+    data.ctrl[:] = ctrl
+    mujoco.mj_forward(model, data)
+    expected = servo.kp * 0.005  # kp (u_max - q): 10 N·m on the big joints, 2.5 on the wrist
+    np.testing.assert_allclose(data.qfrc_actuator, expected, rtol=1e-9)
+    assert np.all(expected < 0.5 * servo.force_hi)
+    np.testing.assert_allclose(servo_force(servo, data.qpos, data.qvel, ctrl), expected, rtol=1e-9)
 
 
 def test_servo_rejects_torque_motors():
