@@ -41,6 +41,7 @@ FORBIDDEN: tuple[str, ...] = (
 ALLOWED: tuple[str, ...] = (
     "labsupport.plants.load_model",
     "labsupport.dynamics.mass_matrix",
+    "labsupport.dynamics.mass_times",
     "labsupport.dynamics.bias_forces",
     "labsupport.dynamics.solve_mass",
     "labsupport.dynamics.site_jacobian",
