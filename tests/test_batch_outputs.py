@@ -303,6 +303,20 @@ def test_the_rubric_command_prints_or_writes_a_problems_rubric(tmp_path, capsys)
     with pytest.raises(SystemExit):
         rubric.main(["--problem", "problem9"])
     assert "the problems are problem1, problem2" in capsys.readouterr().err
+    own = tmp_path / "own.json"  # a spec of the instructor's own: other points, a check unknown here
+    own.write_text(json.dumps({"problem": "p", "checks": [{"name": "p1_pd", "points": 4, "title": "PD"}]}))
+    rubric.main(["--spec", str(own)])
+    assert "| 50 % (2 of 4) | The spring term Kp (q_d − q) is right" in capsys.readouterr().out
+    own.write_text(json.dumps({"problem": "p", "checks": [{"name": "p9", "points": 1, "title": "?"}]}))
+    with pytest.raises(SystemExit):
+        rubric.main(["--spec", str(own)])
+    assert "not an autograder spec of this labsupport's checks: no check named 'p9'" in capsys.readouterr().err
+
+
+def test_every_check_says_how_it_scores():
+    from labsupport.grading import problem1, problem2, registry
+
+    assert set(registry()) == set(problem1.SCORING) | set(problem2.SCORING)
 
 
 # --- the Canvas tool grades what the batch grades -----------------------------------------------

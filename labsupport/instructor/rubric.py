@@ -4,6 +4,7 @@ Usage::
 
     .venv/bin/python -m labsupport.instructor.rubric --problem problem1            # print it
     .venv/bin/python -m labsupport.instructor.rubric --problem problem2 --out rubric.md
+    .venv/bin/python -m labsupport.instructor.rubric --spec path/to/spec.json   # a spec of your own
 
 For each check of the Problem's autograder spec it gives the points, how the check scores, and
 the mistakes the check names in its feedback with the credit each keeps (the ◐ marks). The
@@ -100,14 +101,23 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(
         prog="python -m labsupport.instructor.rubric", description="Write the grading rubric of a Problem."
     )
-    parser.add_argument("--problem", required=True, help="the Problem, as its autograder spec is named (problem1)")
+    which = parser.add_mutually_exclusive_group(required=True)
+    which.add_argument("--problem", help="the Problem, as its autograder spec is named (problem1)")
+    which.add_argument("--spec", type=Path, help="an autograder spec written by labsupport.instructor.assign")
     parser.add_argument("--out", type=Path, help="file to write (default: print)")
     args = parser.parse_args(argv)
-    spec_path = SPECS / f"{args.problem}.json"
+    spec_path = args.spec or SPECS / f"{args.problem}.json"
     if not spec_path.is_file():
-        known = sorted(p.stem for p in SPECS.glob("*.json"))
-        parser.error(f"no autograder spec for --problem {args.problem}: the problems are {', '.join(known)}")
-    text = rubric(json.loads(spec_path.read_text(encoding="utf-8")))
+        known = ", ".join(sorted(p.stem for p in SPECS.glob("*.json")))
+        parser.error(
+            f"no autograder spec at {spec_path}"
+            if args.spec
+            else f"no autograder spec for --problem {args.problem}: the problems are {known}"
+        )
+    try:
+        text = rubric(json.loads(spec_path.read_text(encoding="utf-8")))
+    except (ValueError, KeyError, TypeError) as err:  # not JSON, or not a spec of known checks
+        parser.error(f"{spec_path} is not an autograder spec of this labsupport's checks: {err}")
     if args.out is None:
         sys.stdout.write(text)
     else:
