@@ -329,8 +329,10 @@ CHECKS = {"p1_ik": check_ik, "p1_pd": check_pd, "p1_ct": check_ct, "p1_reach": c
 
 
 def named_mistakes(check: str, seed: int) -> dict[str, Mistake]:
-    """The mistakes the formula check ``check`` (``p1_pd`` or ``p1_ct``) names, with their credit,
-    built at its first test state: what the grading rubric lists."""
+    """The mistakes check ``check`` names, with their credit, built at its first test state: what
+    the grading rubric lists (none for a check that is not a formula check, ``p1_pd`` or ``p1_ct``)."""
+    if check not in ("p1_pd", "p1_ct"):
+        return {}
     mistakes, gains = {"p1_pd": (_pd_mistakes, PD_GAINS), "p1_ct": (_ct_mistakes, CT_GAINS)}[check]
     state, q_d, Kp, Kd = _joint_law_cases(seed, check, gains)[0]
     return mistakes(terms(arm_model(), state.q, state.qdot), state, q_d, Kp, Kd)

@@ -479,8 +479,11 @@ CHECKS = {"p2_start": check_start, "p2_osct": check_os_ct, "p2_ikct": check_ik_c
 
 
 def named_mistakes(check: str, seed: int) -> dict[str, Mistake]:
-    """The mistakes the formula check ``check`` (``p2_osct`` or ``p2_ikct``) names, with their
-    credit, built at its first moving test state: what the grading rubric lists."""
+    """The mistakes check ``check`` names, with their credit, built at its first moving test state:
+    what the grading rubric lists (none for a check that is not a formula check, ``p2_osct`` or
+    ``p2_ikct``)."""
+    if check not in ("p2_osct", "p2_ikct"):
+        return {}
     case_of, still = {"p2_osct": (_os_case, "arm"), "p2_ikct": (_ik_case, "reference")}[check]
     case = next(c for c in tracking_cases(seed, check, still=still) if not c.still)
     return case_of(arm_model(), case)[-1]

@@ -575,7 +575,7 @@ def fill_column(gradebook: Gradebook, column: int, scores: dict[int, str]) -> st
         user = user_of_row.get(r)
         if user is not None and user not in scores:
             continue  # no new score: Canvas keeps what it holds
-        cell = scores[user] if user in scores else fields[column]
+        cell = fields[column] if user is None else scores[user]  # the header and other rows keep theirs
         out.append(gradebook.delimiter.join([*fields[: gradebook.first_assignment_column], cell]) + ending)
     return "".join(out)
 

@@ -41,13 +41,7 @@ def mistake_credits(check: str) -> list[tuple[float, str]]:
     """``(credit, explanation)`` of each mistake the formula check ``check`` names, highest credit
     first, one row per explanation (the IK + joint CT check names one per full turn an angle may be
     off; they share a row). Empty for a check that names none."""
-    module = _module_of(check)
-    if not hasattr(module, "named_mistakes"):
-        return []
-    try:
-        mistakes = module.named_mistakes(check, PUBLIC_SEED)
-    except KeyError:  # not one of that module's formula checks
-        return []
+    mistakes = _module_of(check).named_mistakes(check, PUBLIC_SEED)
     rows = dict.fromkeys((m.score, m.text) for m in mistakes.values())
     return sorted(rows, key=lambda row: -row[0])
 
