@@ -248,7 +248,11 @@ def jacobian_solve(
         )
     JJt, z = _work("JJt", (d, d)), _work("z", (d,))
     mujoco.mju_mulMatMatT(JJt, J, J)
-    if mujoco.mju_cholFactor(JJt, min_pivot) < d:
+    try:
+        rank = mujoco.mju_cholFactor(JJt, min_pivot)
+    except TypeError:
+        raise ValueError(f"jacobian_solve: min_pivot must be a number, got {validate.short(min_pivot)}") from None
+    if rank < d:
         if not np.isfinite(J).all():
             raise ValueError(f"the Jacobian has entries that are not finite (NaN or inf): {J.tolist()}")
         raise ValueError(

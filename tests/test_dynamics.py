@@ -260,6 +260,7 @@ def test_jacobian_solve_takes_a_wide_jacobian_and_any_memory_layout():
     J, y = rng.normal(size=(2, 3)), rng.normal(size=2)
     x = dynamics.jacobian_solve(np.asfortranarray(J), list(y))
     np.testing.assert_allclose(J @ x, y, atol=1e-12)
+    np.testing.assert_allclose(dynamics.jacobian_solve(J.tolist(), y.astype(np.float32)), x, atol=1e-6)
     np.testing.assert_allclose(x, np.linalg.pinv(J) @ y, atol=1e-12)  # the least-norm solution
 
 
@@ -281,6 +282,9 @@ def test_jacobian_solve_names_the_shapes_it_needs():
         (lambda m, d: dynamics.mass_times(m, d, np.ones(3), out=np.zeros(2)), r"mass_times: out .* shape \(3,\), got"),
         (lambda m, d: dynamics.mass_times(m, d, np.ones(2)), r"v must have shape \(3,\)"),
         (lambda m, d: dynamics.jacobian_solve(np.eye(3), np.ones(3), out=np.zeros(2)), r"jacobian_solve: out"),
+        (lambda m, d: dynamics.jacobian_solve(np.eye(3), np.ones(3), out=np.zeros(3, int)), "got a int64 array"),
+        (lambda m, d: dynamics.jacobian_solve(np.eye(3), np.ones(3), out=np.zeros((3, 2))[:, 0]), "not C-contiguous"),
+        (lambda m, d: dynamics.jacobian_solve(np.eye(3), np.ones(3), min_pivot="tiny"), "min_pivot must be a number"),
         (lambda m, d: dynamics.solve_mass(m, d, np.zeros(2)), r"rhs must have shape \(3,\) or \(k, 3\), got \(2,\)"),
         (lambda m, d: dynamics.solve_mass(m, d, np.zeros((3, 3, 3))), r"got \(3, 3, 3\)"),
         (lambda m, d: dynamics.task_space_inertia(m, d, np.eye(3), damping=-1.0), "damping must be non-negative"),
