@@ -109,11 +109,11 @@ def mass_times(model: mujoco.MjModel, data: mujoco.MjData, v: np.ndarray, out: n
     >>> print(mass_times(model, data, [2.0]))
     [1.]
     """
-    if out is None:
-        out = np.empty(model.nv)
     try:
+        if out is None:
+            out = np.empty(model.nv)
         mujoco.mj_mulM(model, data, out, v)
-    except TypeError:
+    except (TypeError, AttributeError):
         validate.model_and_data(model, data)
         validate.vector("v", v, (model.nv,))
         raise _bad_out("mass_times", out, (model.nv,)) from None
@@ -162,6 +162,7 @@ def solve_mass(model: mujoco.MjModel, data: mujoco.MjData, rhs: np.ndarray) -> n
         else:
             mujoco.mj_solveM(model, data, x, y)
     except TypeError:
+        validate.model_and_data(model, data)
         raise ValueError(f"solve_mass: rhs must have shape ({model.nv},) or (k, {model.nv}), got {y.shape}") from None
     return x
 
@@ -188,6 +189,7 @@ def site_jacobian(
     try:
         mujoco.mj_jacSite(model, data, out[:3], out[3:], sid)
     except TypeError:
+        validate.model_and_data(model, data)
         raise _bad_out("site_jacobian", out, (6, model.nv)) from None
     return out
 
@@ -217,7 +219,11 @@ def site_jdot_qdot(
     """
     sid = site_id(model, site)
     jdot = _work("jdot", (6, model.nv))
-    mujoco.mj_jacDot(model, data, jdot[:3], jdot[3:], data.site_xpos[sid], model.site_bodyid[sid])
+    try:
+        mujoco.mj_jacDot(model, data, jdot[:3], jdot[3:], data.site_xpos[sid], model.site_bodyid[sid])
+    except (TypeError, AttributeError):
+        validate.model_and_data(model, data)
+        raise
     try:
         return np.dot(jdot, data.qvel, out=out)
     except (TypeError, ValueError):
@@ -278,6 +284,7 @@ def task_space_inertia(model: mujoco.MjModel, data: mujoco.MjData, jac: np.ndarr
     """
     damping = validate.number("damping", damping, nonnegative=True)
     minv_jt = solve_mass(model, data, jac).T  # M^{-1} J^T, shape (nv, k)
+    jac = np.asarray(jac, dtype=float)
     lam_inv = jac @ minv_jt
     if damping:
         lam_inv = lam_inv + damping * np.eye(lam_inv.shape[0])
@@ -286,7 +293,13 @@ def task_space_inertia(model: mujoco.MjModel, data: mujoco.MjData, jac: np.ndarr
             "task_space_inertia: J has lost rank, so J M⁻¹ Jᵀ is singular and Λ does not exist here (the arm "
             "is stretched out or folded, or J has more rows than joints); pass damping > 0 for a bounded Λ"
         )
-    return np.linalg.solve(lam_inv, np.eye(lam_inv.shape[0]))
+    try:
+        return np.linalg.solve(lam_inv, np.eye(lam_inv.shape[0]))
+    except np.linalg.LinAlgError:  # J has full rank, so M⁻¹ is what vanished
+        raise ValueError(
+            "task_space_inertia: J M⁻¹ Jᵀ is singular although J has full rank, so the data holds no mass "
+            "matrix yet: run mujoco.mj_forward(model, data) (or a step) after setting the state"
+        ) from None
 
 
 def site_id(model: mujoco.MjModel, site: int | str) -> int:

@@ -85,13 +85,19 @@ def _not_text(name: str, value) -> None:
         raise ValueError(f"{name} must be numbers, not text: got {short(value)}")
 
 
+def mujoco_model(model) -> None:
+    """``ValueError`` unless ``model`` is a ``mujoco.MjModel``; a ``mujoco.MjData`` in its place
+    is named as model and data swapped."""
+    if not isinstance(model, mujoco.MjModel):
+        swapped = ": model and data are swapped" if isinstance(model, mujoco.MjData) else ""
+        raise ValueError(f"model must be a mujoco.MjModel, got {type(model).__name__}{swapped}")
+
+
 def model_and_data(model, data) -> None:
     """``ValueError`` unless ``model`` is a ``mujoco.MjModel`` and ``data`` a ``mujoco.MjData``
     made for it (sizes checked: a data of another model would be read past its arrays or
     broadcast into the wrong shapes)."""
-    if not isinstance(model, mujoco.MjModel):
-        swapped = ": model and data are swapped" if isinstance(model, mujoco.MjData) else ""
-        raise ValueError(f"model must be a mujoco.MjModel, got {type(model).__name__}{swapped}")
+    mujoco_model(model)
     if not isinstance(data, mujoco.MjData):
         raise ValueError(f"data must be a mujoco.MjData (made with mujoco.MjData(model)), got {type(data).__name__}")
     sizes = {"nq": data.qpos.size, "nv": data.qvel.size, "nu": data.ctrl.size, "nbody": len(data.xpos)}
@@ -135,6 +141,7 @@ def model_object(model: mujoco.MjModel, kind: str, value) -> int:
     """The id of the model's ``kind`` (``"site"``, ``"camera"`` or ``"keyframe"``) given by name
     or by id, or a ``ValueError`` that lists the model's ones (an id out of range would make
     MuJoCo read past its arrays)."""
+    mujoco_model(model)
     obj, count = _OBJECTS[kind][0], getattr(model, _OBJECTS[kind][1])
     if isinstance(value, str):
         found = mujoco.mj_name2id(model, obj, value)

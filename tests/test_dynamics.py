@@ -188,6 +188,36 @@ def test_model_and_data_of_the_wrong_kind_are_named(arm):
         dynamics.bias_forces(model)
 
 
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda m, d: dynamics.mass_times(m, d, np.ones(3)),
+        lambda m, d: dynamics.solve_mass(m, d, np.ones(3)),
+        lambda m, d: dynamics.site_jacobian(m, d, "tip"),
+        lambda m, d: dynamics.site_jdot_qdot(m, d, "tip"),
+        lambda m, d: dynamics.task_space_inertia(m, d, np.eye(3)),
+    ],
+)
+def test_every_helper_names_a_model_and_data_swapped_or_missing(arm, call):
+    """Each helper says which of the two is wrong, never an AttributeError from inside, nor an
+    error that blames another argument (a missing data once blamed ``out``)."""
+    model, data = arm
+    mujoco.mj_forward(model, data)
+    with pytest.raises(ValueError, match="model and data are swapped"):
+        call(data, model)
+    with pytest.raises(ValueError, match="data must be a mujoco.MjData"):
+        call(model, None)
+
+
+def test_task_space_inertia_on_data_never_forwarded_says_to_run_mj_forward(arm):
+    model, data = arm  # a fresh MjData: MuJoCo has computed no mass matrix yet
+    with pytest.raises(ValueError, match=r"run mujoco.mj_forward\(model, data\)"):
+        dynamics.task_space_inertia(model, data, np.eye(3))
+    mujoco.mj_forward(model, data)
+    Lam = dynamics.task_space_inertia(model, data, np.eye(3).tolist())  # J = I: Λ = M
+    np.testing.assert_allclose(Lam, dynamics.mass_matrix(model, data), rtol=1e-10)
+
+
 def test_unknown_site_is_named(arm):
     model, data = arm
     with pytest.raises(ValueError, match="'hand'.*tip"):

@@ -8,7 +8,7 @@ from scipy.optimize import brentq
 from labsupport import gains, metrics, sim
 from labsupport.controllers.single_joint import computed_torque, feedforward_torque, pd_torque, pi_speed_torque
 from labsupport.plants import SingleJoint, load_model
-from labsupport.trajectories import sinusoid, versine
+from labsupport.trajectories import Reference, sinusoid, versine
 
 HORIZONTAL = SingleJoint(g=0.0)
 VERTICAL = SingleJoint(g=9.81)
@@ -203,6 +203,13 @@ def test_log_metrics_say_what_the_log_lacks():
     with pytest.raises(ValueError, match=r"shape \(50, 1\) as log.tau, got shape \(2,\)"):
         metrics.saturation_report(log, np.zeros(2))
     assert metrics.saturation_report(log, np.zeros((50, 1))) == ""
+    with pytest.raises(ValueError, match="log must be the Log that labsupport.sim.simulate returns, got tuple"):
+        metrics.rms_position_error((log.t, log.q))  # a student's own (t, q) pair
+    at_origin = sim.simulate(
+        model, data, lambda model, data: np.zeros(1), 0.05, site="tip", reference=lambda t: Reference(0.0, 0.0, 0.0)
+    )
+    with pytest.raises(ValueError, match="after must be numbers, not text"):
+        metrics.rms_position_error(at_origin, after="1 s")
     with pytest.raises(ValueError, match="a model is named by a string"):
         load_model(None)
 
