@@ -288,6 +288,73 @@ def test_the_batch_writes_the_problems_rubric_beside_the_grades(tmp_path):
     assert f"{sum(c['points'] for c in spec['checks']):g} points in all" in text
     # p1_ct (3 points): leaving h out keeps a quarter, as the check gives (tests/test_checks.py)
     assert "| 25 % (0.75 of 3) | M(q)(Kp e − Kd q̇) is right, but the bias term h(q, q̇)" in text
+    assert "| 25 % (0.75 of 3) | h(q, q̇) must be added, not subtracted. |" in text  # h, not H
+    assert _rating_points(_canvas_rubric(out / "rubric_canvas.csv")) == _canvas_rubric_expected(spec)
+
+
+def _canvas_rubric(path: Path) -> dict:
+    """``{criterion: [(rating, description, points), ...]}`` read from a rubric CSV as Canvas's
+    importer reads it (``lib/rubric_csv_importer.rb``): the opening columns by their exact names,
+    the ratings by the words in their headers, a rating kept where its name is given, its points
+    with "," read as ".", rounded to two decimals. One rubric per file."""
+    raw = path.read_bytes()
+    assert not raw.startswith(b"\xef\xbb\xbf"), "a BOM would become part of 'Rubric Name'"
+    header, *rows = list(csv.reader(raw.decode("utf-8").splitlines()))
+    assert header[:4] == ["Rubric Name", "Criteria Name", "Criteria Description", "Criteria Enable Range"]
+    names = [i for i, h in enumerate(header) if "rating name" in h.lower()]
+    texts = [i for i, h in enumerate(header) if "rating description" in h.lower()]
+    points = [i for i, h in enumerate(header) if "rating points" in h.lower()]
+    assert len(names) == len(texts) == len(points) >= 2
+    assert len({row[0] for row in rows}) == 1 and rows[0][0]
+    parsed = {}
+    for row in rows:
+        assert row[1] and row[3] == "false" and len(row) <= len(header)
+        cells = row + [""] * (len(header) - len(row))
+        parsed[row[1]] = [
+            (cells[n], cells[t], round(float(cells[p].replace(",", ".")), 2))
+            for n, t, p in zip(names, texts, points, strict=True)
+            if cells[n]
+        ]
+    return parsed
+
+
+def _rating_points(parsed: dict) -> dict:
+    """``{criterion: [points of each rating]}``."""
+    return {criterion: [r[2] for r in ratings] for criterion, ratings in parsed.items()}
+
+
+def _canvas_rubric_expected(spec: dict) -> dict:
+    """What the rubric must hold for Canvas, from the checks alone: per check, full marks at its
+    points, each credit a named mistake keeps with every such mistake in that rating's words,
+    and no marks at 0, in descending order."""
+    from labsupport.instructor.rubric import mistake_credits
+
+    expected = {}
+    for c in spec["checks"]:
+        credits = sorted({credit for credit, _ in mistake_credits(c["name"])} - {0.0}, reverse=True)
+        expected[f"{c['name']}: {c['title']}"] = [c["points"], *(round(k * c["points"], 2) for k in credits), 0.0]
+    return expected
+
+
+def test_the_canvas_rubric_rates_every_named_mistake_at_its_credit(tmp_path):
+    """``--out x.csv`` writes the rubric for Canvas's Import Rubric, each named mistake in the
+    rating of the credit it keeps."""
+    from labsupport.instructor import rubric
+    from labsupport.instructor.rubric import mistake_credits
+
+    for problem in ("problem1", "problem2"):
+        spec = json.loads((SPEC.parent / f"{problem}.json").read_text(encoding="utf-8"))
+        path = tmp_path / f"{problem}.csv"
+        rubric.main(["--problem", problem, "--out", str(path)])
+        parsed = _canvas_rubric(path)
+        assert _rating_points(parsed) == _canvas_rubric_expected(spec)
+        assert sum(ratings[0][2] for ratings in parsed.values()) == sum(c["points"] for c in spec["checks"])
+        for c in spec["checks"]:
+            ratings = parsed[f"{c['name']}: {c['title']}"]
+            assert [r[0] for r in ratings][0] == "Full marks" and ratings[-1][0] == "No marks"
+            for credit, text in mistake_credits(c["name"]):  # each mistake, in the rating of its credit
+                rating = next(r for r in ratings if r[2] == round(credit * c["points"], 2))
+                assert text[1:] in rating[1]
 
 
 def test_the_rubric_command_prints_or_writes_a_problems_rubric(tmp_path, capsys):

@@ -74,7 +74,7 @@ from labsupport.instructor.canvas import (
     seed_argument,
     without_outputs,
 )
-from labsupport.instructor.rubric import rubric
+from labsupport.instructor.rubric import canvas_rubric_csv, rubric
 
 #: The note every row carries when the batch ran without a sandbox.
 UNSAFE_NOTE = "graded WITHOUT a sandbox (--unsafe-no-sandbox): only for submissions you trust"
@@ -321,8 +321,9 @@ def feedback_names(files: list[str]) -> dict[str, str]:
 
 def _write_results(out: Path, spec: dict, rows: list[dict], record: dict) -> None:
     """Write ``grades.csv``, a feedback file per row, ``batch.json`` and the Problem's grading
-    rubric ``rubric.md`` (:mod:`labsupport.instructor.rubric`) into ``out``; then remove
-    the feedback files of an earlier batch (:func:`labsupport.instructor.canvas.remove_stale_feedback`).
+    rubric (``rubric.md``, and ``rubric_canvas.csv`` for Canvas: :mod:`labsupport.instructor.rubric`)
+    into ``out``; then remove the feedback files of an earlier batch
+    (:func:`labsupport.instructor.canvas.remove_stale_feedback`).
     An earlier batch's ``grades.csv`` and ``batch.json`` (its seed) move to ``out/previous/``
     first, replacing what an even earlier one left there."""
     out = Path(out)
@@ -333,6 +334,7 @@ def _write_results(out: Path, spec: dict, rows: list[dict], record: dict) -> Non
         _atomic_write(out / "feedback" / names[row["file"]], feedback_text(row["file"], spec, row))
     _atomic_write(out / "batch.json", json.dumps(record, indent=2) + "\n")
     _atomic_write(out / "rubric.md", rubric(spec))
+    _atomic_write(out / "rubric_canvas.csv", canvas_rubric_csv(spec))
     remove_stale_feedback(out / "feedback", set(names.values()))
 
 

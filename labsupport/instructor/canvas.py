@@ -17,7 +17,8 @@ Gradebook's *Export* gives, grades each student's notebook with
 * ``OUT/report.txt``: what was graded and what was not, and why (grades in Canvas that the
   import replaces, files that match no student, students with no submission, unreadable files,
   late work, resubmissions, scaling);
-* ``OUT/batch/``: the batch grader's own ``grades.csv`` and feedback.
+* ``OUT/batch/``: the batch grader's own ``grades.csv`` and feedback, and the Problem's rubric
+  (``rubric.md``, and ``rubric_canvas.csv`` for the course's *Rubrics → Import Rubric*).
 
 What Canvas produces, and where each fact comes from
 ----------------------------------------------------

@@ -5,17 +5,29 @@ Usage::
     .venv/bin/python -m labsupport.instructor.rubric --problem problem1            # print it
     .venv/bin/python -m labsupport.instructor.rubric --problem problem2 --out rubric.md
     .venv/bin/python -m labsupport.instructor.rubric --spec path/to/spec.json   # a spec of your own
+    .venv/bin/python -m labsupport.instructor.rubric --problem problem1 --out rubric.csv   # for Canvas
 
 For each check of the Problem's autograder spec it gives the points, how the check scores, and
 the mistakes the check names in its feedback with the credit each keeps (the ◐ marks). The
 scoring rules are each check module's ``SCORING``; the mistakes are built by the checks' own
 code (``named_mistakes``), so the rubric cannot drift from what the grader does. The batch
 grader writes the same text to ``rubric.md`` beside ``grades.csv``.
+
+An ``--out`` file ending in ``.csv`` gets the same rubric in the format of Canvas's *Import
+Rubric* (the Rubrics page, with Enhanced Rubrics), and the batch grader writes that too, as
+``rubric_canvas.csv``. The format is Canvas's own template and importer (``template_file`` in
+``app/models/rubric_import.rb`` and ``lib/rubric_csv_importer.rb`` of canvas-lms): a header row,
+then one row per criterion, the rubric's name repeated on each; after ``Criteria Enable Range``
+come groups of ``Rating Name``, ``Rating Description``, ``Rating Points``, as many as a criterion
+needs (a row may stop early); points take two decimals. The file is UTF-8 without a byte-order
+mark, which would become part of the first column's name.
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
+import io
 import json
 import sys
 from pathlib import Path
@@ -51,8 +63,10 @@ def _points(credit: float, points: float) -> str:
 
 
 def _sentence(text: str) -> str:
-    """``text`` with a capital first letter and a full stop."""
-    text = text[:1].upper() + text[1:]
+    """``text`` with a capital first letter and a full stop; a text that opens with a one-letter
+    symbol (``h(q, q̇)``, ``e = ...``) keeps its case, which is part of the symbol."""
+    if text[1:2].isalpha():
+        text = text[:1].upper() + text[1:]
     return text if text.endswith((".", ")")) else text + "."
 
 
@@ -91,6 +105,50 @@ def rubric(spec: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: The columns that open Canvas's rubric import, and the three that each rating adds.
+CANVAS_COLUMNS = ("Rubric Name", "Criteria Name", "Criteria Description", "Criteria Enable Range")
+CANVAS_RATING = ("Rating Name", "Rating Description", "Rating Points")
+
+
+def canvas_ratings(check: str, points: float) -> list[tuple[str, str, float]]:
+    """``(name, description, points)`` of each rating of ``check`` in a Canvas rubric, from full
+    marks down to none: full credit, then each credit a named mistake keeps (the mistakes that
+    keep the same credit share one rating), then no credit, with what scores 0 on every check."""
+    by_credit: dict[float, list[str]] = {}
+    for credit, text in mistake_credits(check):
+        by_credit.setdefault(credit, []).append(_sentence(text))
+    zero = [
+        "Fails the check, as its description says; or the function is missing, raises, returns a wrong shape "
+        "or NaN, runs past its time limits, or answers the TODO through labsupport's controllers or kinematics.",
+        *by_credit.pop(0.0, []),
+    ]
+    ratings = [("Full marks", "Passes the check, as its description says.", float(points))]
+    for credit in sorted(by_credit, reverse=True):
+        ratings.append((f"{100 * credit:g} % kept", " ".join(by_credit[credit]), credit * points))
+    ratings.append(("No marks", " ".join(zero), 0.0))
+    return ratings
+
+
+def canvas_rubric_csv(spec: dict) -> str:
+    """The rubric of the Problem an autograder spec describes, as a CSV for Canvas's *Import
+    Rubric*: one criterion per check, named ``<check>: <title>``, described by how it scores,
+    with the ratings of :func:`canvas_ratings`."""
+    rows = []
+    for c in spec["checks"]:
+        module = _module_of(c["name"])
+        row = [f"{spec['problem']}: grading rubric", f"{c['name']}: {c['title']}", module.SCORING[c["name"]], "false"]
+        for name, description, points in canvas_ratings(c["name"], c["points"]):
+            row += [name, description, f"{round(points, 2):g}"]
+        rows.append(row)
+    most = max(len(row) for row in rows)
+    header = list(CANVAS_COLUMNS) + list(CANVAS_RATING) * ((most - len(CANVAS_COLUMNS)) // len(CANVAS_RATING))
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(header)
+    writer.writerows(rows)
+    return buf.getvalue()
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(
         prog="python -m labsupport.instructor.rubric", description="Write the grading rubric of a Problem."
@@ -98,7 +156,9 @@ def main(argv=None) -> None:
     which = parser.add_mutually_exclusive_group(required=True)
     which.add_argument("--problem", help="the Problem, as its autograder spec is named (problem1)")
     which.add_argument("--spec", type=Path, help="an autograder spec written by labsupport.instructor.assign")
-    parser.add_argument("--out", type=Path, help="file to write (default: print)")
+    parser.add_argument(
+        "--out", type=Path, help="file to write (default: print); a name ending in .csv gets Canvas's import format"
+    )
     args = parser.parse_args(argv)
     spec_path = args.spec or SPECS / f"{args.problem}.json"
     if not spec_path.is_file():
@@ -109,7 +169,9 @@ def main(argv=None) -> None:
             else f"no autograder spec for --problem {args.problem}: the problems are {known}"
         )
     try:
-        text = rubric(json.loads(spec_path.read_text(encoding="utf-8")))
+        spec = json.loads(spec_path.read_text(encoding="utf-8"))
+        canvas = args.out is not None and args.out.suffix.lower() == ".csv"
+        text = canvas_rubric_csv(spec) if canvas else rubric(spec)
     except (ValueError, KeyError, TypeError) as err:  # not JSON, or not a spec of known checks
         parser.error(f"{spec_path} is not an autograder spec of this labsupport's checks: {err}")
     if args.out is None:
