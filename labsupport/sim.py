@@ -227,6 +227,10 @@ def simulate(
         raise ValueError(
             f"controller must be a function controller(model, data) -> tau, got {validate.short(controller)}"
         )
+    if actuation is not None and not callable(actuation):
+        raise ValueError(
+            f"actuation must be a function actuation(model, data, tau) -> ctrl, got {validate.short(actuation)}"
+        )
     dt = model.opt.timestep
     duration = validate.number("duration", duration, positive=True)
     nsteps = step_count(duration, dt, lab_timing)
@@ -288,7 +292,13 @@ def simulate(
                 ctrl[:] = tau
             else:
                 tau_log[k] = tau
-                ctrl[:] = actuation(model, data, tau)
+                try:
+                    ctrl[:] = actuation(model, data, tau)
+                except (ValueError, TypeError) as err:
+                    raise ValueError(
+                        f"the actuation mapping failed at t = {data.time:.4f} s: {err}; it must "
+                        f"return the controls as an array of shape ({nu},)"
+                    ) from err
             if log_before:
                 get_state(model, data, state[k], _LOGGED_STATE)
                 if with_site:
@@ -299,7 +309,20 @@ def simulate(
             else:
                 step(model, data)
             if warn[_W_QPOS] or warn[_W_QVEL] or warn[_W_QACC] or warn[_W_CTRL]:
-                _raise_warning(k, state, q, qdot, t_start, q_start, qdot_start, tau, warn, log_after_step, said)
+                _raise_warning(
+                    k,
+                    state,
+                    q,
+                    qdot,
+                    t_start,
+                    q_start,
+                    qdot_start,
+                    tau,
+                    warn,
+                    log_after_step,
+                    said,
+                    actuated=actuation is not None,
+                )
             if log_after_step:
                 get_state(model, data, state[k], _LOGGED_STATE)
     for message in said:  # the run went on: MuJoCo's other warnings (a full contact buffer, ...)
@@ -329,6 +352,12 @@ def _controller_failed(err: Exception, model: mujoco.MjModel, data: mujoco.MjDat
     inside a law) also the sizes the model's state has."""
     kind = TypeError if isinstance(err, TypeError) else ValueError
     message = f"the controller raised {type(err).__name__} at t = {data.time:.4f} s: {str(err).rstrip()}"
+    if isinstance(err, np.linalg.LinAlgError):
+        message += (
+            ". A matrix the law solves with or inverts is singular here: the Jacobian when the arm is stretched "
+            "out or folded (keep the target inside the workspace, away from its edge), or the mass matrix of data "
+            "that has not been through mj_forward"
+        )
     if "shape" in message:
         message += (
             f". The model's state has nq = {model.nq}, nv = {model.nv} and nu = {model.nu}: check that "
@@ -353,10 +382,11 @@ def _as_torque(tau, nu: int) -> np.ndarray:
     return tau.reshape(nu)
 
 
-def _raise_warning(k, state, q, qdot, t_start, q_start, qdot_start, tau, warn, log_after_step, said):
+def _raise_warning(k, state, q, qdot, t_start, q_start, qdot_start, tau, warn, log_after_step, said, actuated=False):
     """MuJoCo flagged step ``k`` (and reset the state): report the state at the step's start,
     or the first earlier state beyond :data:`RUNAWAY_SPEED` (so a run that ran away reports the
-    same time whether or not this MuJoCo's warnings fire as well)."""
+    same time whether or not this MuJoCo's warnings fire as well). With an actuation mapping
+    (``actuated``), controls that went bad from a sound torque are laid at the mapping's door."""
     _check_runaway(state[:k, 0], q[:k], qdot[:k])
     if log_after_step:
         tk, qk, qdk = (state[k - 1, 0], q[k - 1], qdot[k - 1]) if k else (t_start, q_start, qdot_start)
@@ -365,6 +395,11 @@ def _raise_warning(k, state, q, qdot, t_start, q_start, qdot_start, tau, warn, l
     if warn[_W_CTRL]:
         with np.printoptions(precision=4):
             reason = f"the controller returned tau = {tau}: MuJoCo's {_WARNING_MEANING[_W_CTRL]}"
+            if actuated and np.all(np.abs(tau) < mujoco.mjMAXVAL):  # a sound torque: the mapping made them
+                reason = (
+                    f"the actuation mapping turned tau = {tau} into controls that are not finite or huge "
+                    "(a None in its result becomes NaN)"
+                )
     else:
         w = next(i for i in (_W_QPOS, _W_QVEL, _W_QACC) if warn[i])
         reason = (

@@ -363,6 +363,34 @@ def test_actuation_maps_torque_to_ctrl(arm):
     np.testing.assert_array_equal(direct.ctrl, direct.tau)
 
 
+def test_an_actuation_mapping_that_fails_is_named_not_the_controller(arm):
+    """A mapping returning the wrong shape used to surface as NumPy's broadcast error, and one
+    returning None as a torque that was "not finite" although the controller's was [0, 0]."""
+    model, data = arm
+    zero = constant([0.0, 0.0])
+    with pytest.raises(ValueError, match=r"actuation must be a function actuation\(model, data, tau\) -> ctrl, got 5"):
+        sim.simulate(model, data, zero, 0.1, actuation=5)
+    with pytest.raises(ValueError, match=r"the actuation mapping failed at t = 0\.0000 s: .*shape \(2,\)"):
+        sim.simulate(model, data, zero, 0.1, actuation=lambda m, d, tau: np.zeros(3))
+    with pytest.raises(sim.SimulationDiverged, match=r"the actuation mapping turned tau = \[0\. 0\.\] into controls"):
+        sim.simulate(model, data, zero, 0.1, actuation=lambda m, d, tau: None)
+    with pytest.raises(
+        sim.SimulationDiverged, match="the controller returned tau = .*nan"
+    ):  # the law's NaN stays its own
+        sim.simulate(model, data, constant([np.nan, 0.0]), 0.1, actuation=lambda m, d, tau: tau)
+
+
+def test_a_singular_solve_in_a_law_is_explained(arm):
+    model, data = arm
+
+    def stretched(model, data):  # the 2R law a student writes, at a stretched-out arm
+        J = np.array([[0.0, 0.0], [0.9, 0.4]])
+        return np.linalg.solve(J, np.ones(2))
+
+    with pytest.raises(ValueError, match="LinAlgError at t = 0.0000 s: Singular matrix. .*stretched out or folded"):
+        sim.simulate(model, data, stretched, 0.1)
+
+
 def test_split_step_shows_the_controller_the_current_kinematics(arm):
     """With mj_step1 before the controller, site_xpos belongs to the current qpos exactly; with
     the default Euler stepping it belongs to the start of the previous step."""
