@@ -96,6 +96,11 @@ def show_figure(figure, alt: str) -> None:
     else:
         import matplotlib.pyplot as plt
 
+        if not isinstance(figure, plt.Figure):
+            raise ValueError(
+                f"show_figure shows a Matplotlib figure (fig from plt.subplots()) or an RGB image array, "
+                f"got {type(figure).__name__}"
+            )
         _refuse_colour_only_curves(figure)
         buffer = io.BytesIO()
         figure.savefig(buffer, format="png", bbox_inches="tight")  # as the inline backend draws it

@@ -57,6 +57,14 @@ def test_an_alt_that_says_nothing_is_refused(shown, alt):
     assert shown == []
 
 
+@pytest.mark.parametrize("figure", [None, plt, [[0, 1], [1, 0]]])
+def test_what_is_neither_a_figure_nor_an_image_is_named(shown, figure):
+    """``show_figure(plt, ...)`` or a forgotten ``fig =`` used to end in an AttributeError from inside."""
+    with pytest.raises(ValueError, match=r"a Matplotlib figure \(fig from plt.subplots\(\)\) or an RGB image array"):
+        book.show_figure(figure, ALT)
+    assert shown == []
+
+
 def test_curves_told_apart_by_colour_alone_are_refused(shown):
     with pytest.raises(ValueError, match=r"panel 'speed'.*'simulation' and 'closed form' differ by colour alone"):
         book.show_figure(two_curves(), ALT)
