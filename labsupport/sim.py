@@ -282,7 +282,7 @@ def simulate(
                 step1(model, data)
             try:
                 tau = controller(model, data)
-            except (ValueError, TypeError) as err:
+            except (ValueError, TypeError, np.linalg.LinAlgError) as err:  # not a ValueError in NumPy 1
                 raise _controller_failed(err, model, data) from err
             if type(tau) is not np.ndarray or tau.shape != (nu,) or tau.dtype != np.float64:
                 tau = _as_torque(tau, nu)
