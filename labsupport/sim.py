@@ -271,7 +271,7 @@ def simulate(
     site_xpos = data.site_xpos[site_id] if with_site else None
     site_xmat = data.site_xmat[site_id].reshape(3, 3) if with_site else None
     warn = memoryview(data.warning.number)  # live view of MuJoCo's warning counters
-    t_start, q_start, qdot_start = data.time, data.qpos.copy(), data.qvel.copy()
+    start = data.time, data.qpos.copy(), data.qvel.copy()  # time and state before step 0
     step, step1, step2, get_state = mujoco.mj_step, mujoco.mj_step1, mujoco.mj_step2, mujoco.mj_getState
     log_before = not log_after_step
 
@@ -309,20 +309,7 @@ def simulate(
             else:
                 step(model, data)
             if warn[_W_QPOS] or warn[_W_QVEL] or warn[_W_QACC] or warn[_W_CTRL]:
-                _raise_warning(
-                    k,
-                    state,
-                    q,
-                    qdot,
-                    t_start,
-                    q_start,
-                    qdot_start,
-                    tau,
-                    warn,
-                    log_after_step,
-                    said,
-                    actuated=actuation is not None,
-                )
+                _raise_warning(k, state, q, qdot, start, tau, warn, log_after_step, said, actuation is not None)
             if log_after_step:
                 get_state(model, data, state[k], _LOGGED_STATE)
     for message in said:  # the run went on: MuJoCo's other warnings (a full contact buffer, ...)
@@ -330,7 +317,7 @@ def simulate(
 
     if log_after_step:  # each row holds the state after its step; the control began one step earlier
         t = state[:, 0].copy()
-        t_ctrl = np.concatenate(([t_start], t[:-1]))
+        t_ctrl = np.concatenate(([start[0]], t[:-1]))
     else:
         t = t_ctrl = state[:, 0].copy()
     q, qdot, ctrl_log = q.copy(), qdot.copy(), ctrl_log.copy()
@@ -382,14 +369,15 @@ def _as_torque(tau, nu: int) -> np.ndarray:
     return tau.reshape(nu)
 
 
-def _raise_warning(k, state, q, qdot, t_start, q_start, qdot_start, tau, warn, log_after_step, said, actuated=False):
-    """MuJoCo flagged step ``k`` (and reset the state): report the state at the step's start,
+def _raise_warning(k, state, q, qdot, start, tau, warn, log_after_step, said, actuated=False):
+    """MuJoCo flagged step ``k`` (and reset the state): report the state at the step's start
+    (``start``, the time, qpos and qvel before step 0, for ``k = 0`` with ``log_after_step``),
     or the first earlier state beyond :data:`RUNAWAY_SPEED` (so a run that ran away reports the
     same time whether or not this MuJoCo's warnings fire as well). With an actuation mapping
     (``actuated``), controls that went bad from a sound torque are laid at the mapping's door."""
     _check_runaway(state[:k, 0], q[:k], qdot[:k])
     if log_after_step:
-        tk, qk, qdk = (state[k - 1, 0], q[k - 1], qdot[k - 1]) if k else (t_start, q_start, qdot_start)
+        tk, qk, qdk = (state[k - 1, 0], q[k - 1], qdot[k - 1]) if k else start
     else:
         tk, qk, qdk = state[k, 0], q[k], qdot[k]
     if warn[_W_CTRL]:
