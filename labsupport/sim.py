@@ -328,6 +328,14 @@ def simulate(
     if reference is not None:
         ref = _evaluate(reference, t_ctrl)
         err = ref - ee[:, : ref.shape[1]]
+        bad = ~np.isfinite(ref).all(axis=1)
+        if bad.any():  # the run itself is sound: keep it, and say where its error is undefined
+            warnings.warn(
+                f"the reference is not finite at {bad.sum()} of {nsteps} steps, first at t = "
+                f"{t_ctrl[np.argmax(bad)]:.4f} s: the log's err, and the error metrics, are NaN there",
+                RuntimeWarning,
+                stacklevel=2,
+            )
     else:
         ref = err = np.empty((nsteps, 0))
     return Log(t, q, qdot, tau_log, ctrl_log, ee, ee_rot, ref, err, site_id)

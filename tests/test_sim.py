@@ -380,6 +380,18 @@ def test_an_actuation_mapping_that_fails_is_named_not_the_controller(arm):
         sim.simulate(model, data, constant([np.nan, 0.0]), 0.1, actuation=lambda m, d, tau: tau)
 
 
+def test_a_reference_that_is_not_finite_is_reported_and_the_run_kept(arm):
+    model, data = arm
+
+    def breaks_at_50_ms(t):  # a reference that breaks down part-way
+        pos = np.where(np.asarray(t)[..., None] < 0.05, [0.5, 0.2], np.nan)
+        return Reference(pos, np.zeros_like(pos), np.zeros_like(pos))
+
+    with pytest.warns(RuntimeWarning, match=r"not finite at 25 of 50 steps, first at t = 0\.0500 s"):
+        log = sim.simulate(model, data, constant([0.0, 0.0]), 0.1, site="end_effector", reference=breaks_at_50_ms)
+    assert np.isfinite(log.err[:25]).all() and np.isnan(log.err[25:]).all()
+
+
 def test_a_singular_solve_in_a_law_is_explained(arm):
     model, data = arm
 
