@@ -246,7 +246,7 @@ def simulate(
     reset(model, data, q0, qdot0, keyframe=keyframe, forward=not lab_timing)
     site_id = -1 if site is None else dynamics.site_id(model, site)
     if reference is not None:  # checked before the run, which would otherwise be lost to it
-        _check_reference(reference, data.time, 3 if site_id >= 0 else 0)
+        _check_reference(reference, (data.time, data.time + (nsteps - 1) * dt), 3 if site_id >= 0 else 0)
     nu = model.nu
     limit = None
     if torque_limit is not None:
@@ -488,15 +488,21 @@ def _check_runaway(t, q, qdot):
         raise SimulationDiverged(float(t[k]), q[k], qdot[k], reason)
 
 
-def _check_reference(reference, t: float, site_dims: int) -> None:
-    """``ValueError`` unless ``reference(t)`` is a :class:`Reference` whose position a site
-    position of ``site_dims`` coordinates can be compared with."""
-    d = np.size(trajectories.evaluate(reference, t).pos)
+def _check_reference(reference, span: tuple[float, float], site_dims: int) -> None:
+    """``ValueError`` unless ``reference`` gives, at the run's first and last control times
+    (``span``), a :class:`Reference` whose position a site position of ``site_dims`` coordinates
+    can be compared with (a sampled reference shorter than the run fails at the last)."""
+    first, last = span
+    d = np.size(trajectories.evaluate(reference, first).pos)
     if d > site_dims:
         raise ValueError(
             f"the reference has {d} components; a site position has {site_dims} "
             "(pass site= to compare the reference with a site)"
         )
+    try:
+        trajectories.evaluate(reference, last)
+    except ValueError as err:
+        raise ValueError(f"the reference fails at the run's last control time, t = {last:.4f} s: {err}") from None
 
 
 def _evaluate(reference, t) -> np.ndarray:

@@ -2,6 +2,7 @@
 split and lab stepping, and divergence detection."""
 
 import warnings
+from functools import partial
 
 import mujoco
 import numpy as np
@@ -390,6 +391,16 @@ def test_a_reference_that_is_not_finite_is_reported_and_the_run_kept(arm):
     with pytest.warns(RuntimeWarning, match=r"not finite at 25 of 50 steps, first at t = 0\.0500 s"):
         log = sim.simulate(model, data, constant([0.0, 0.0]), 0.1, site="end_effector", reference=breaks_at_50_ms)
     assert np.isfinite(log.err[:25]).all() and np.isnan(log.err[25:]).all()
+
+
+def test_a_reference_shorter_than_the_run_is_refused_before_it(arm):
+    """It used to fail after the whole run, when the log's error was computed, losing the run."""
+    model, data = arm
+    one_second = sample(partial(circle_2d, center=(0.5, 0.2), radius=0.15, period=6.0), model.opt.timestep, 1.0)
+    with pytest.raises(ValueError, match=r"fails at the run's last control time, t = 1\.9980 s: .*\[0, 1\.002\] s"):
+        sim.simulate(model, data, constant([0.0, 0.0]), 2.0, site="end_effector", reference=one_second)
+    log = sim.simulate(model, data, constant([0.0, 0.0]), 1.0, site="end_effector", reference=one_second)
+    assert log.err.shape == (500, 2) and np.isfinite(log.err).all()
 
 
 def test_a_singular_solve_in_a_law_is_explained(arm):
