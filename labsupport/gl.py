@@ -22,6 +22,14 @@ GLVND_EGL_VENDOR_DIRS = ("/etc/glvnd/egl_vendor.d", "/usr/share/glvnd/egl_vendor
 NVIDIA_EGL_LIBRARY = "libEGL_nvidia.so.0"
 #: labsupport's own vendor file naming :data:`NVIDIA_EGL_LIBRARY`, for drivers that install none (Colab).
 NVIDIA_EGL_VENDOR_FILE = str(Path(__file__).with_name("nvidia_egl_vendor.json"))
+#: Files that exist where NVIDIA's kernel driver runs (a GPU is there), inside a container too.
+NVIDIA_DRIVER_FILES = ("/proc/driver/nvidia/version", "/dev/nvidiactl")
+#: What to do where an NVIDIA GPU is there but its EGL library is not (see :func:`nvidia_egl_missing`).
+NVIDIA_EGL_ADVICE = (
+    "an NVIDIA GPU is here, but its EGL library (libEGL_nvidia.so.0) does not load, so MuJoCo cannot render "
+    "on it: in a container, start it with NVIDIA_DRIVER_CAPABILITIES=all (or one that includes graphics), "
+    "which mounts the driver's OpenGL and EGL libraries; elsewhere, install the driver's OpenGL/EGL package"
+)
 
 
 def on_linux() -> bool:
@@ -48,6 +56,13 @@ def library_loads(name: str) -> bool:
     except OSError:
         return False
     return True
+
+
+def nvidia_egl_missing() -> bool:
+    """True when NVIDIA's driver runs here (:data:`NVIDIA_DRIVER_FILES`) but its EGL library does
+    not load: a container started without the driver's graphics libraries, typically. EGL then
+    renders, if at all, through Mesa in software."""
+    return any(Path(f).exists() for f in NVIDIA_DRIVER_FILES) and not library_loads(NVIDIA_EGL_LIBRARY)
 
 
 def list_nvidia_egl() -> bool:
@@ -151,6 +166,8 @@ def select_backend() -> str | None:
     """
     global last_choice
     listed = " (NVIDIA's EGL listed by labsupport)" if on_linux() and list_nvidia_egl() else ""
+    if on_linux() and nvidia_egl_missing():
+        listed += f"; {NVIDIA_EGL_ADVICE}"
     if "MUJOCO_GL" in os.environ:
         last_choice = f"MUJOCO_GL={os.environ['MUJOCO_GL']} was set before labsupport was imported{listed}"
         return os.environ["MUJOCO_GL"]

@@ -149,6 +149,23 @@ def test_select_backend_reports_when_nothing_works(fresh_backend_choice):
     assert "MUJOCO_GL" not in os.environ
 
 
+def test_a_gpu_without_its_egl_library_is_named_with_what_to_do(fresh_backend_choice, tmp_path):
+    """A container started without NVIDIA's graphics libraries used to get Mesa's advice only."""
+    driver = tmp_path / "version"
+    driver.write_text("NVRM version: 550\n")
+    fresh_backend_choice.setattr(gl, "on_linux", lambda: True)
+    fresh_backend_choice.setattr(gl, "NVIDIA_DRIVER_FILES", (str(driver),))
+    fresh_backend_choice.setattr(gl, "NVIDIA_EGL_LIBRARY", "libEGL_nvidia_absent.so.0")
+    for works in ("egl_works", "osmesa_works", "display_open"):
+        fresh_backend_choice.setattr(gl, works, lambda: False)
+    assert gl.select_backend() is None
+    assert "no OpenGL backend works" in gl.last_choice
+    assert "an NVIDIA GPU is here, but its EGL library" in gl.last_choice
+    assert "NVIDIA_DRIVER_CAPABILITIES=all" in gl.last_choice
+    fresh_backend_choice.setattr(gl, "NVIDIA_DRIVER_FILES", (str(tmp_path / "absent"),))
+    assert gl.select_backend() is None and "NVIDIA" not in gl.last_choice  # no GPU: no such advice
+
+
 def test_a_linux_desktop_without_egl_or_osmesa_renders_through_glfw(fresh_backend_choice):
     fresh_backend_choice.setattr(gl, "on_linux", lambda: True)
     fresh_backend_choice.setattr(gl, "egl_works", lambda: False)
