@@ -367,6 +367,10 @@ def test_the_rubric_command_prints_or_writes_a_problems_rubric(tmp_path, capsys)
     assert text.count("full turn (2π) away from the one nearest the arm") == 2  # elbow up, elbow down
     rubric.main(["--problem", "problem1"])
     assert capsys.readouterr().out.startswith("# Grading rubric: problem1")
+    for bad in (tmp_path, tmp_path / "absent" / "r.md"):
+        with pytest.raises(SystemExit):
+            rubric.main(["--problem", "problem1", "--out", str(bad)])
+        assert f"cannot write the rubric to {bad}: " in capsys.readouterr().err
     with pytest.raises(SystemExit):
         rubric.main(["--problem", "problem9"])
     assert "the problems are problem1, problem2" in capsys.readouterr().err

@@ -177,7 +177,12 @@ def main(argv=None) -> None:
     if args.out is None:
         sys.stdout.write(text)
     else:
-        args.out.write_text(text, encoding="utf-8")
+        try:
+            args.out.write_text(text, encoding="utf-8")
+        except OSError as err:  # a folder, a folder that does not exist, no permission
+            parser.error(
+                f"cannot write the rubric to {args.out}: {err.strerror}; give a file path in a folder you can write"
+            )
 
 
 if __name__ == "__main__":
