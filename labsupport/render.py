@@ -14,6 +14,7 @@ never slows the control loop down and a failed render loses no results.
 from __future__ import annotations
 
 import os
+import warnings
 from html import escape
 
 import IPython.display
@@ -94,14 +95,19 @@ def make_renderer(model: mujoco.MjModel, width: int = 320, height: int = 240) ->
     backend = os.environ.get("MUJOCO_GL")
     if not backend and gl.on_linux():  # on Linux, MuJoCo's default (GLFW) needs a display
         raise RenderingUnavailable(f"No OpenGL backend for MuJoCo ({gl.last_choice}). {INSTALL_HINT}")
+    gpu_unused = gl.on_linux() and gl.nvidia_egl_missing()
     try:
-        return mujoco.Renderer(model, height=height, width=width)
+        renderer = mujoco.Renderer(model, height=height, width=width)
     except Exception as err:  # EGL/OSMesa/CGL/GLFW/PyOpenGL raise many types; all mean "no context"
         used = f"MUJOCO_GL={backend}" if backend else "its default backend"
+        gpu = f" Also, {gl.NVIDIA_EGL_ADVICE}." if gpu_unused else ""
         raise RenderingUnavailable(
             f"MuJoCo could not open an offscreen OpenGL context with {used} "
-            f"({type(err).__name__}: {err}). {INSTALL_HINT}"
+            f"({type(err).__name__}: {err}).{gpu} {INSTALL_HINT}"
         ) from err
+    if gpu_unused:  # it renders, but on the CPU
+        warnings.warn(f"MuJoCo renders in software here, slowly: {gl.NVIDIA_EGL_ADVICE}", RuntimeWarning, stacklevel=2)
+    return renderer
 
 
 def add_trace(scene: mujoco.MjvScene, points: np.ndarray, width: float, rgba: np.ndarray) -> int:

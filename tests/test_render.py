@@ -166,6 +166,31 @@ def test_a_gpu_without_its_egl_library_is_named_with_what_to_do(fresh_backend_ch
     assert gl.select_backend() is None and "NVIDIA" not in gl.last_choice  # no GPU: no such advice
 
 
+def test_rendering_on_the_cpu_beside_an_unusable_gpu_says_why(monkeypatch, tmp_path):
+    """Mesa's EGL renders but the GPU sits idle, or nothing renders: either way the GPU's
+    missing EGL library is named, with what to do."""
+    import mujoco
+
+    driver = tmp_path / "version"
+    driver.write_text("NVRM version: 550\n")
+    monkeypatch.setattr(gl, "NVIDIA_DRIVER_FILES", (str(driver),))
+    monkeypatch.setattr(gl, "NVIDIA_EGL_LIBRARY", "libEGL_nvidia_absent.so.0")
+    monkeypatch.setattr(gl, "on_linux", lambda: True)
+    monkeypatch.setenv("MUJOCO_GL", "egl")
+    model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='1'/></worldbody></mujoco>")
+    made = object()
+    monkeypatch.setattr(mujoco, "Renderer", lambda model, height, width: made)
+    with pytest.warns(RuntimeWarning, match="renders in software here, slowly: an NVIDIA GPU is here"):
+        assert render.make_renderer(model) is made
+
+    def no_context(model, height, width):
+        raise RuntimeError("eglInitialize failed")
+
+    monkeypatch.setattr(mujoco, "Renderer", no_context)
+    with pytest.raises(render.RenderingUnavailable, match=r"eglInitialize failed\)\. Also, an NVIDIA GPU is here"):
+        render.make_renderer(model)
+
+
 def test_a_linux_desktop_without_egl_or_osmesa_renders_through_glfw(fresh_backend_choice):
     fresh_backend_choice.setattr(gl, "on_linux", lambda: True)
     fresh_backend_choice.setattr(gl, "egl_works", lambda: False)
