@@ -113,6 +113,14 @@ def frequency_for_settling(zeta: float, settling_time: float) -> float:
     This is the lab's rule. It is the time the envelope :math:`e^{-\zeta\omega_n t}` needs to
     fall to about 2 %; the response itself can settle earlier. :func:`exact_settling_frequency`
     gives the frequency for which the simulated response settles at exactly ``settling_time``.
+    The rule is made for :math:`\zeta < 1`: at :math:`\zeta = 1` (critical damping) the response
+    takes about :math:`5.8/\omega_n`, not :math:`4/\omega_n`, so there the rule's
+    :math:`\omega_n` is about 30 % too low; use :func:`exact_settling_frequency`.
+
+    Example: critical damping and a 2 s settling time, by the rule and exactly.
+
+    >>> print(f"{frequency_for_settling(1.0, 2.0):.2f} rad/s, exactly {exact_settling_frequency(1.0, 2.0):.2f} rad/s")
+    2.00 rad/s, exactly 2.92 rad/s
     """
     return 4.0 / (_positive("zeta", zeta) * _positive("settling_time", settling_time))
 
