@@ -162,3 +162,6 @@ def test_annulus_sample_is_seeded_and_reachable():
     b = k2.sample_annulus(np.random.default_rng(42))
     np.testing.assert_array_equal(a, b)
     assert 0.15 <= np.linalg.norm(a) <= 0.85
+    np.testing.assert_array_equal(k2.sample_annulus(42), a)  # a seed makes the same generator
+    with pytest.raises(ValueError, match=r"rng must be a NumPy generator, such as np.random.default_rng\(42\)"):
+        k2.sample_annulus("42")

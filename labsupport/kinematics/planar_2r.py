@@ -262,10 +262,10 @@ def joint_reference(
 
 
 def sample_annulus(
-    rng: np.random.Generator, arm: Planar2R = LAB_ARM, margin: float = 0.05
+    rng: np.random.Generator | int, arm: Planar2R = LAB_ARM, margin: float = 0.05
 ) -> np.ndarray:
     r"""A random target inside the workspace, kept ``margin`` away from both
-    boundaries.
+    boundaries. ``rng`` is a NumPy generator, used as it is, or a seed for one.
 
     Draws, as the lab does, first a radius
     :math:`\rho \sim U(|l_1 - l_2| + \text{margin},\; l_1 + l_2 - \text{margin})` and
@@ -273,6 +273,13 @@ def sample_annulus(
     :math:`\rho(\cos\phi, \sin\phi)`. (Uniform in radius, so not uniform in area:
     points near the inner edge are denser.)
     """
+    try:
+        rng = np.random.default_rng(rng)  # a Generator comes back unchanged
+    except (TypeError, ValueError):
+        raise ValueError(
+            "rng must be a NumPy generator, such as np.random.default_rng(42), "
+            f"or a whole-number seed, got {rng!r}"
+        ) from None
     lo, hi = arm.reach_min + margin, arm.reach_max - margin
     if not lo < hi:
         raise ValueError(
