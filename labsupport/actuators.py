@@ -135,4 +135,6 @@ def implicit_damping(servo: Servo, timestep: float) -> np.ndarray:
     MuJoCo (3.5 and newer) integrates it without damping, and the joint moves by
     :math:`M\ddot q = f_{\text{limit}} - h` on that step.
     """
+    if not isinstance(servo, Servo):
+        raise ValueError(f"implicit_damping takes the servos, Servo.from_model(model), got {type(servo).__name__}")
     return validate.number("timestep", timestep, positive=True) * servo.kv

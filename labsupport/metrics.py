@@ -16,6 +16,8 @@ def _samples(error) -> np.ndarray:
     if error is None:
         raise ValueError("no error to take the RMS of (got None)")
     error = np.asarray(error, dtype=float)
+    if error.ndim == 0:
+        raise ValueError(f"the RMS is taken over samples, an array of them; got the single number {error}")
     if error.size == 0:
         raise ValueError(
             f"no samples to take the RMS of (an empty array of shape {error.shape}); with "

@@ -218,6 +218,10 @@ def within_reach(reference: SampledReference, anchor, radius: float) -> SampledR
     feedforward matches the path that is actually tracked. Points inside the sphere keep their
     position.
     """
+    if not isinstance(reference, SampledReference):
+        raise ValueError(
+            f"within_reach takes a sampled reference (trajectories.sample(...)), got {type(reference).__name__}"
+        )
     anchor = validate.vector("anchor", anchor, (np.shape(reference.pos)[-1],))
     radius = validate.number("radius", radius, positive=True)
     offset = reference.pos - anchor

@@ -203,6 +203,8 @@ def test_log_metrics_say_what_the_log_lacks():
     with pytest.raises(ValueError, match=r"shape \(50, 1\) as log.tau, got shape \(2,\)"):
         metrics.saturation_report(log, np.zeros(2))
     assert metrics.saturation_report(log, np.zeros((50, 1))) == ""
+    with pytest.raises(ValueError, match="the RMS is taken over samples, an array of them; got the single number"):
+        metrics.rms(0.3)
     with pytest.raises(ValueError, match="log must be the Log that labsupport.sim.simulate returns, got tuple"):
         metrics.rms_position_error((log.t, log.q))  # a student's own (t, q) pair
     at_origin = sim.simulate(

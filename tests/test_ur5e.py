@@ -231,6 +231,8 @@ def test_implicit_servo_damping_adds_dt_kv_to_the_inertia(ur):
     np.testing.assert_allclose(implicit_damping(servo, dt), [0.8, 0.8, 0.8, 0.2, 0.2, 0.2])
     with pytest.raises(ValueError, match="timestep must be positive"):
         implicit_damping(servo, -dt)
+    with pytest.raises(ValueError, match=r"takes the servos, Servo.from_model\(model\), got MjModel"):
+        implicit_damping(model, dt)
     for _ in range(5):
         _random_state(model, data, rng)
         tau = rng.uniform(0.5 * servo.force_lo, 0.5 * servo.force_hi)
@@ -495,6 +497,8 @@ def test_within_reach_keeps_inner_points_and_differentiates_the_outer_path():
     np.testing.assert_allclose(pulled.vel[600:, 0], 0.0, atol=1e-12)  # held on the sphere: at rest
     with pytest.raises(ValueError, match="radius"):
         trajectories.within_reach(line, np.zeros(3), -1.0)
+    with pytest.raises(ValueError, match=r"takes a sampled reference \(trajectories.sample\(...\)\), got function"):
+        trajectories.within_reach(lambda t: line(t), np.zeros(3), 1.0)
 
 
 def test_tracking_law_refuses_a_singular_jacobian(ur, circle):
