@@ -26,7 +26,7 @@ NVIDIA_EGL_VENDOR_FILE = str(Path(__file__).with_name("nvidia_egl_vendor.json"))
 NVIDIA_DRIVER_FILES = ("/proc/driver/nvidia/version", "/dev/nvidiactl")
 #: What to do where an NVIDIA GPU is there but its EGL library is not (see :func:`nvidia_egl_missing`).
 NVIDIA_EGL_ADVICE = (
-    "an NVIDIA GPU is here, but its EGL library (libEGL_nvidia.so.0) does not load, so MuJoCo cannot render "
+    f"an NVIDIA GPU is here, but its EGL library ({NVIDIA_EGL_LIBRARY}) does not load, so MuJoCo cannot render "
     "on it: in a container, start it with NVIDIA_DRIVER_CAPABILITIES=all (or one that includes graphics), "
     "which mounts the driver's OpenGL and EGL libraries; elsewhere, install the driver's OpenGL/EGL package"
 )
@@ -165,11 +165,11 @@ def select_backend() -> str | None:
     Returns the backend in force, or None.
     """
     global last_choice
-    listed = " (NVIDIA's EGL listed by labsupport)" if on_linux() and list_nvidia_egl() else ""
+    notes = " (NVIDIA's EGL listed by labsupport)" if on_linux() and list_nvidia_egl() else ""
     if on_linux() and nvidia_egl_missing():
-        listed += f"; {NVIDIA_EGL_ADVICE}"
+        notes += f"; {NVIDIA_EGL_ADVICE}"
     if "MUJOCO_GL" in os.environ:
-        last_choice = f"MUJOCO_GL={os.environ['MUJOCO_GL']} was set before labsupport was imported{listed}"
+        last_choice = f"MUJOCO_GL={os.environ['MUJOCO_GL']} was set before labsupport was imported{notes}"
         return os.environ["MUJOCO_GL"]
     if "mujoco" in sys.modules:
         last_choice = "mujoco was imported before labsupport, so MUJOCO_GL could not be chosen"
@@ -188,10 +188,10 @@ def select_backend() -> str | None:
             os.environ["MUJOCO_GL"] = backend
             if pyopengl:
                 os.environ.setdefault("PYOPENGL_PLATFORM", pyopengl)
-            last_choice = f"MUJOCO_GL={backend} (tried first: {', '.join(tried) or 'nothing'}){listed}"
+            last_choice = f"MUJOCO_GL={backend} (tried first: {', '.join(tried) or 'nothing'}){notes}"
             return backend
         tried.append(failed)
-    last_choice = "no OpenGL backend works: " + ", ".join(tried) + listed
+    last_choice = "no OpenGL backend works: " + ", ".join(tried) + notes
     return None
 
 

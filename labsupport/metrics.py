@@ -205,8 +205,8 @@ def _log(log):
 
 
 def _after(log, after: float) -> np.ndarray:
-    """Rows of ``log`` logged at ``t >= after``."""
-    return _log(log).t >= validate.number("after", after)
+    """Rows of ``log`` (already checked by :func:`_log`) logged at ``t >= after``."""
+    return log.t >= validate.number("after", after)
 
 
 def rms_position_error(log, after: float = 0.0) -> float:

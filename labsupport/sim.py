@@ -232,8 +232,7 @@ def simulate(
             f"actuation must be a function actuation(model, data, tau) -> ctrl, got {validate.short(actuation)}"
         )
     dt = model.opt.timestep
-    duration = validate.number("duration", duration, positive=True)
-    nsteps = step_count(duration, dt, lab_timing)
+    nsteps = step_count(duration, dt, lab_timing)  # checks the duration
     if nsteps <= 0:
         raise ValueError(f"duration must be at least one time step ({dt} s), got {duration!r}")
     if split_step and lab_timing:

@@ -15,10 +15,11 @@ reason saying to ask for it again); the other files and the subfolders are named
 left aside and listed in ``OUT/batch.json`` (a subfolder holding notebooks says how many).
 ``OUT/batch.json`` also records the seed, the spec, the date and the versions, so that
 ``--seed`` reproduces every grade; ``OUT/rubric.md`` says how each check scores and what
-partial credit each mistake it names keeps. A row whose grading failed ("error") or ran out of wall-clock
-time ("timed out: regrade") gets no score, never a zero. Every message is written on one line,
-without control characters (student code writes into them); the files are the owner's alone
-when run as a command, and feedback files left in OUT by an earlier batch are removed.
+partial credit each mistake it names keeps (``OUT/rubric_canvas.csv``: the same, for Canvas).
+A row whose grading failed ("error") or ran out of wall-clock time ("timed out: regrade") gets
+no score, never a zero. Every message is written on one line, without control characters
+(student code writes into them); the files are the owner's alone when run as a command, and
+feedback files left in OUT by an earlier batch are removed.
 
 How a submission is isolated:
 
