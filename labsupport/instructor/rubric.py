@@ -75,6 +75,10 @@ def _cell(text: str) -> str:
     return text.replace("|", "\\|").replace("\n", " ")
 
 
+#: What scores 0 on any check, whatever the check asks (said in both forms of the rubric).
+_BROKEN = "is missing, raises, returns a wrong shape or NaN, or runs past its time limits"
+
+
 def rubric(spec: dict) -> str:
     """The rubric of the Problem an autograder spec describes, as Markdown."""
     checks = spec["checks"]
@@ -89,7 +93,7 @@ def rubric(spec: dict) -> str:
         "",
         "- a TODO answered by calling into labsupport's controllers, kinematics or checks "
         f"({', '.join(f'`{m}`' for m in FORBIDDEN)}) scores 0, with the reason;",
-        "- a function that is missing, raises, returns a wrong shape or NaN, or runs past its limits "
+        f"- a function that {_BROKEN} "
         f"({budget.call:g} s of CPU per call, {budget.check:g} s over the check) scores 0 on that check, "
         "the others keep their points;",
         "- the test states, targets and circles are drawn from the batch's secret seed.",
@@ -118,8 +122,8 @@ def canvas_ratings(check: str, points: float) -> list[tuple[str, str, float]]:
     for credit, text in mistake_credits(check):
         by_credit.setdefault(credit, []).append(_sentence(text))
     zero = [
-        "Fails the check, as its description says; or the function is missing, raises, returns a wrong shape "
-        "or NaN, runs past its time limits, or answers the TODO through labsupport's controllers or kinematics.",
+        f"Fails the check, as its description says; or the function {_BROKEN}; or it answers the TODO "
+        "through labsupport's controllers or kinematics.",
         *by_credit.pop(0.0, []),
     ]
     ratings = [("Full marks", "Passes the check, as its description says.", float(points))]
