@@ -11,7 +11,7 @@ Modules, one idea each:
 ``controllers``           the control laws, one function each: PI, PD, feedforward, computed torque, OS-CT
 ``sim``                   one MuJoCo simulation loop that returns a :class:`~labsupport.sim.Log`
 ``metrics``               functions of a Log: RMS errors, effort, overshoot, settling time, saturation
-``render``                offscreen MuJoCo video (EGL, OSMesa fallback) with mediapy
+``render``                offscreen MuJoCo pictures and video (EGL, OSMesa fallback) with mediapy
 ``ur5e``                  the Menagerie UR5e with the lab's scene, loaded from any directory
 ``actuators``             position servos as an actuator mapping: the one servo inversion
 ``grading``               in-notebook checks of the Problems (batch grading: labsupport.instructor)

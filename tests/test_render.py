@@ -434,3 +434,76 @@ def test_the_ffmpeg_of_imageio_ffmpeg_is_used_when_none_is_on_the_path(no_ffmpeg
     html = render.video_html(frames, fps=4, description="Random noise, in four small frames.")
     assert 'type="video/mp4"' in html
     assert mediapy.video_is_available()  # mediapy was pointed there: "no-such-ffmpeg-program" is not
+
+
+PICTURE_SCRIPT = r"""
+import json
+import labsupport
+import mujoco
+import numpy as np
+from labsupport import render, trajectories
+from labsupport.plants import load_model
+model, data = load_model("spatial_3r")
+data.qpos[:] = [0.4, 0.5, -0.9]
+mujoco.mj_forward(model, data)
+circle = trajectories.circle_3d(np.linspace(0, 5, 200), (1.0, 0.3, 1.2), 0.3, (0, 0, 1), 0.2).pos
+result = {}
+for name, path in (("with path", circle), ("without path", None)):
+    frame = render.render_picture(model, data, path=path, width=320, height=240)
+    red = (frame[..., 0] > 150) & (frame[..., 1] < 60) & (frame[..., 2] < 60)
+    blue = (frame[..., 2] > 200) & (frame[..., 1] < 130) & (frame[..., 0] < 30)  # not the link's (51, 153, 230)
+    result[name] = {"shape": list(frame.shape), "std": float(frame.std()),
+                    "red": np.argwhere(red).tolist(), "blue": int(blue.sum())}
+cam = model.camera("oblique").id
+result["camera"] = {"pos": data.cam_xpos[cam].tolist(), "mat": data.cam_xmat[cam].tolist(),
+                    "fovy": float(model.cam_fovy[cam]), "tip": data.site("end_effector").xpos.tolist()}
+print(json.dumps(result))
+"""
+
+
+@pytest.mark.skipif(not gl.egl_works(), reason="EGL cannot open a display on this machine")
+def test_a_picture_shows_the_tip_where_the_camera_sees_it_and_the_path_in_blue(tmp_path):
+    """The red end-effector ball lies where a pinhole camera of the model's fovy projects the
+    site's position (a few pixels of tolerance for the ball's radius); the path's blue trace
+    shows only when a path is given."""
+    result = _run_script(tmp_path, PICTURE_SCRIPT)
+    cam = result.pop("camera")
+    rotation = np.array(cam["mat"]).reshape(3, 3)  # camera axes in the world: x right, y up, looking along -z
+    x, y, z = rotation.T @ (np.array(cam["tip"]) - np.array(cam["pos"]))
+    focal = 120 / np.tan(np.radians(cam["fovy"]) / 2)  # half the 240-pixel height over tan(fovy / 2)
+    column, row = 160 + focal * x / -z, 120 - focal * y / -z
+    for name, frame in result.items():
+        assert frame["shape"] == [240, 320, 3] and frame["std"] > 10, name
+        red = np.array(frame["red"])
+        near = np.hypot(red[:, 0] - row, red[:, 1] - column) < 6
+        assert near.sum() >= 4, (name, (row, column), red.mean(axis=0))
+    assert result["with path"]["blue"] > 100 and result["without path"]["blue"] == 0, result
+
+
+def test_pictures_and_videos_are_not_made_while_the_batch_grader_runs(monkeypatch, capsys):
+    from labsupport.grading import BATCH_ENV
+    from labsupport.plants import load_model
+
+    model, data = load_model("spatial_3r")
+    monkeypatch.setenv(BATCH_ENV, "1")
+    with pytest.raises(render.RenderingUnavailable, match="batch grader"):
+        render.render_picture(model, data)
+    render.show_picture(model, data, description="The 3R arm standing upright at q = 0.")
+    printed = capsys.readouterr().out
+    assert printed.startswith("(No picture: pictures and videos are not made while the batch grader")
+    assert printed.rstrip().endswith(") The 3R arm standing upright at q = 0.")
+
+
+def test_a_picture_names_a_bad_path_and_needs_a_description():
+    from labsupport.plants import load_model
+
+    model, data = load_model("spatial_3r")
+    for path in (np.zeros((5, 2)), [[0.0, 0.0, np.nan]], "circle"):
+        with pytest.raises(ValueError, match=r"path must be finite points of shape \(K, 3\)"):
+            render.render_picture(model, data, path=path)
+    with pytest.raises(ValueError, match="model and data"):
+        render.render_picture(data, model)
+    with pytest.raises(ValueError, match="camera"):
+        render.render_picture(model, data, camera="front")
+    with pytest.raises(ValueError):
+        render.show_picture(model, data, description="arm")
