@@ -6,7 +6,7 @@ Modules, one idea each:
 ``plants``                the analytic single-joint model and the MuJoCo model loaders
 ``dynamics``              mass matrix, bias forces, Jacobians from MuJoCo (3.x and 4.x)
 ``kinematics``            forward/inverse kinematics of the 2R arm (the 3R arm's is a Problem)
-``trajectories``          versine, sinusoid and circles: position, velocity, acceleration
+``trajectories``          set point, versine, sinusoid and circles: position, velocity, acceleration
 ``gains``                 PD gain design (actuator limit, %OS/settling time, wn/zeta)
 ``controllers``           the control laws, one function each: PI, PD, feedforward, computed torque, OS-CT
 ``sim``                   one MuJoCo simulation loop that returns a :class:`~labsupport.sim.Log`

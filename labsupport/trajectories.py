@@ -38,6 +38,25 @@ def evaluate(reference: Callable, t) -> Reference:
     return Reference(*(np.asarray(part, dtype=float) for part in result))
 
 
+def set_point(t, point) -> Reference:
+    r"""A fixed target: :math:`x_d = p`, :math:`\dot x_d = \ddot x_d = 0` at every time.
+
+    ``point`` is a position of any dimension ``d``; arrays of ``t`` give arrays of shape
+    ``(len(t), d)``, as the moving references do, so a run logs its error to a set point the
+    same way.
+
+    >>> print(set_point([0.0, 1.0], (1.0, 0.0, 2.0)).pos)
+    [[1. 0. 2.]
+     [1. 0. 2.]]
+    """
+    t = validate.times(t)
+    point = validate.vector("point", point, np.shape(point))
+    if point.ndim != 1:
+        raise ValueError(f"point must be one position, a 1-D array, got shape {point.shape}")
+    pos = np.broadcast_to(point, t.shape + point.shape).copy()
+    return Reference(pos, np.zeros_like(pos), np.zeros_like(pos))
+
+
 def versine(t, c: float, amplitude: float = np.pi / 4) -> Reference:
     r"""Raised-cosine move of the lab's feedforward tasks, for :math:`0 \le t \le \pi`:
 

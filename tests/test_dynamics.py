@@ -343,3 +343,19 @@ def test_a_too_old_mujoco_is_refused_with_what_to_do():
     assert "ImportError: labsupport needs MuJoCo 3.5.0 or newer" in run.stderr
     assert "pip install --upgrade 'mujoco>=3.5.0,<5'" in run.stderr and "restart" in run.stderr
     assert dynamics._version("3.10.0rc1") == (3, 10, 0) > dynamics._version("3.5.0")
+
+
+def test_the_3r_arm_has_the_problems_masses_and_its_scene_adds_none():
+    """At q = 0 (links 1 and 2 upright, link 3 horizontal along +x) the thin-rod model of the
+    Problems gives: gravity loads joints 2 and 3 with the weight of link 3 at half its length,
+    m3 g l3 / 2, and the pan's inertia is the two upright links' axial 0.001 kg·m² each plus link 3's
+    m3 l3²/12 + m3 (l3/2)² = m3 l3²/3. The sky, floor, camera and mocap target of the scene add
+    nothing to either."""
+    from labsupport.plants import load_model
+
+    model, data = load_model("spatial_3r")
+    mujoco.mj_forward(model, data)
+    m3, l3, g = 0.5, 1.0, 9.81
+    assert np.allclose(data.qfrc_bias, [0.0, -m3 * g * l3 / 2, -m3 * g * l3 / 2], atol=1e-9)
+    assert dynamics.mass_matrix(model, data)[0, 0] == pytest.approx(0.002 + m3 * l3**2 / 3, rel=1e-5)
+    assert model.body("target").mocapid[0] == 0 and model.body_mass[model.body("target").id] == 0

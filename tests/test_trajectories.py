@@ -53,3 +53,14 @@ def test_circle_3d_stays_on_its_circle_in_its_plane():
 def test_bad_circle_arguments_are_named(call, message):
     with pytest.raises(ValueError, match=message):
         call()
+
+
+def test_a_set_point_holds_still_in_any_dimension():
+    one = tr.set_point(2.0, [0.5, -0.1, 1.2])
+    assert np.array_equal(one.pos, [0.5, -0.1, 1.2]) and not one.vel.any() and not one.acc.any()
+    many = tr.set_point(np.linspace(0, 1, 4), (0.3, 0.4))
+    assert many.pos.shape == many.vel.shape == many.acc.shape == (4, 2)
+    assert np.array_equal(many.pos, np.tile([0.3, 0.4], (4, 1)))
+    for bad, said in (("x", "not text"), ([[1.0, 2.0]], "1-D"), ([1.0, np.nan], "finite")):
+        with pytest.raises(ValueError, match=said):
+            tr.set_point(0.0, bad)
