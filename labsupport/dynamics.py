@@ -16,7 +16,6 @@ that knows; keep it that way.
 from __future__ import annotations
 
 import re
-import threading
 
 import mujoco
 import numpy as np
@@ -47,23 +46,6 @@ if _version(mujoco.__version__) < OLDEST_MUJOCO:
 
 #: True on MuJoCo >= 4, where ``mj_fullM(model, data, dst)`` replaced ``mj_fullM(model, dst, qM)``.
 FULLM_TAKES_DATA = not hasattr(mujoco.MjData, "qM")
-
-_scratch = threading.local()
-
-
-def _work(name: str, shape: tuple[int, ...]) -> np.ndarray:
-    """A scratch array of ``shape``, made once per thread and reused by every later call, so
-    the helpers below allocate nothing for their intermediate results inside a control loop.
-    Only the helper that names it uses it, and never across a call to another helper."""
-    try:
-        return _scratch.arrays[name, shape]
-    except AttributeError:
-        _scratch.arrays = {}
-    except KeyError:
-        pass
-    work = _scratch.arrays[name, shape] = np.empty(shape)
-    return work
-
 
 def mass_matrix(model: mujoco.MjModel, data: mujoco.MjData, out: np.ndarray | None = None) -> np.ndarray:
     r"""Dense joint-space inertia matrix :math:`M(q)` of shape ``(nv, nv)``.
@@ -200,7 +182,7 @@ def site_jdot_qdot(
     r"""The velocity-product acceleration :math:`\dot J(q,\dot q)\,\dot q` of a site, shape ``(6,)``.
 
     With it, :math:`\ddot x = J\ddot q + \dot J\dot q`. Uses ``mj_jacDot`` at the site's
-    current position; :math:`\dot J` goes to a scratch array reused from call to call.
+    current position.
 
     Args:
         out: optional preallocated ``(6,)`` float64 array to fill; a new array otherwise.
@@ -218,7 +200,7 @@ def site_jdot_qdot(
     -0.800 m/s²
     """
     sid = site_id(model, site)
-    jdot = _work("jdot", (6, model.nv))
+    jdot = np.empty((6, model.nv))
     try:
         mujoco.mj_jacDot(model, data, jdot[:3], jdot[3:], data.site_xpos[sid], model.site_bodyid[sid])
     except (TypeError, AttributeError):
@@ -252,10 +234,9 @@ def jacobian_solve(
             f"jacobian_solve needs a (d, nv) Jacobian with d <= nv and a (d,) right-hand side, "
             f"got J of shape {J.shape} and rhs of shape {rhs.shape}"
         )
-    JJt, z = _work("JJt", (d, d)), _work("z", (d,))
-    mujoco.mju_mulMatMatT(JJt, J, J)
+    JJt = J.dot(J.T)
     try:
-        rank = mujoco.mju_cholFactor(JJt, min_pivot)
+        rank = mujoco.mju_cholFactor(JJt, min_pivot)  # J J^T = L L^T, in place
     except TypeError:
         raise ValueError(f"jacobian_solve: min_pivot must be a number, got {validate.short(min_pivot)}") from None
     if rank < d:
@@ -266,13 +247,12 @@ def jacobian_solve(
             "folded): no joint acceleration gives the task acceleration asked for; keep the "
             "target inside the workspace, away from its boundary"
         )
-    mujoco.mju_cholSolve(z, JJt, rhs)
-    x = np.empty(nv) if out is None else out
+    z = np.empty(d)
+    mujoco.mju_cholSolve(z, JJt, rhs)  # z = (J J^T)^-1 y
     try:
-        mujoco.mju_mulMatTVec(x, J, z)
-    except TypeError:
+        return np.dot(J.T, z, out=out)  # x = J^T z
+    except (TypeError, ValueError):
         raise _bad_out("jacobian_solve", out, (nv,)) from None
-    return x
 
 
 def task_space_inertia(model: mujoco.MjModel, data: mujoco.MjData, jac: np.ndarray, damping: float = 0.0) -> np.ndarray:

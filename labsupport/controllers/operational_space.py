@@ -42,7 +42,7 @@ def os_ct_torque(model, data, site, x_d, xdot_d, xddot_d, Kp, Kd):
     d = len(x_d)
     x = data.site_xpos[site, :d]
     J = site_jacobian(model, data, site)[:d]
-    xdot = J @ data.qvel
+    xdot = J.dot(data.qvel)
     xddot = (
         xddot_d
         + Kd * (xdot_d - xdot)

@@ -200,7 +200,7 @@ def tracking_torque(
     )
     a = (
         arrays.xddot_d
-        - gains.kd * (J @ data.qvel - arrays.xdot_d)
+        - gains.kd * (J.dot(data.qvel) - arrays.xdot_d)
         - gains.kp * e
         - jdot_qdot
     )
