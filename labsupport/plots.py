@@ -280,15 +280,37 @@ def circle_tracking_figure(runs: Mapping[str, object], desired_path):
 # ---------------------------------------------------------------------------------------
 
 
-def frame_indices(n_samples: int, dt: float, fps: float, speed: float = 1.0) -> np.ndarray:
-    """Which samples (spaced ``dt`` seconds) to show for a video at ``fps`` played ``speed`` times real time."""
+#: The most frames one video may have: 2.5 minutes at 12 frames/s, about 0.9 GB of frames at
+#: 480x360 (the frames are held in memory until they are encoded).
+MAX_FRAMES = 1800
+
+
+def frame_indices(
+    n_samples: int, dt: float, fps: float, speed: float = 1.0, until: float | None = None
+) -> np.ndarray:
+    r"""Which samples (spaced ``dt`` seconds, the first at :math:`t = 0`) a video at ``fps`` frames
+    per second shows when it plays them at ``speed`` times real time (0.25: four times slower),
+    up to ``until`` seconds into the samples (all of them by default): frame :math:`i` shows the
+    sample nearest :math:`t_i = i\,s/f`. The video lasts the span divided by :math:`s`, and at
+    least one frame (the first sample).
+
+    Raises:
+        ValueError: no samples, a non-positive ``fps``, ``dt``, ``speed`` or ``until``, or a
+            video of more than :data:`MAX_FRAMES` frames.
+    """
     if n_samples <= 0:
         raise ValueError("there are no samples to animate")
     fps = validate.number("fps", fps, positive=True)
     dt = validate.number("dt", dt, positive=True)
     speed = validate.number("speed", speed, positive=True)
-    stride = max(1, int(round(speed / (fps * dt))))
-    return np.arange(0, n_samples, stride)
+    span = n_samples * dt if until is None else min(n_samples * dt, validate.number("until", until, positive=True))
+    count = max(1, int(span * fps / speed + 1e-9))  # the tolerance: 5 s at 12 frames/s is 60 frames
+    if count > MAX_FRAMES:
+        raise ValueError(
+            f"{span:g} s played at speed {speed:g} and {fps:g} frames/s is {count} frames, more than "
+            f"{MAX_FRAMES}: replay a part of the run (until=), play it faster (speed=) or lower fps"
+        )
+    return np.minimum(np.rint(np.arange(count) * speed / (fps * dt)).astype(int), n_samples - 1)
 
 
 def planar_arm_frames(

@@ -27,6 +27,7 @@ import numpy as np
 from labsupport import gl, validate
 from labsupport.book import show_figure, text_alternative
 from labsupport.grading import BATCH_ENV
+from labsupport.plots import frame_indices
 from labsupport.sim import Log, site_positions
 
 #: Blue target trace and red end-effector trace, as in the lab.
@@ -143,6 +144,8 @@ def render_run(
     trace_step: float = 0.04,
     progress: bool = True,
     target_body: str = "target",
+    speed: float = 1.0,
+    until: float | None = None,
 ) -> np.ndarray:
     """Frames (F, height, width, 3) replaying a run's :class:`labsupport.sim.Log`.
 
@@ -159,9 +162,14 @@ def render_run(
     OpenGL renders several times faster without them. A progress bar (tqdm) shows while
     ``progress`` is true; in a notebook it is erased when the video is done.
 
+    ``speed`` is the playback rate (0.25 shows a quick motion four times slower, in four times
+    as many frames) and ``until`` the part of the run to replay, in seconds from its start (the
+    whole run by default); :func:`labsupport.plots.frame_indices` picks the logged rows.
+
     Raises:
         ValueError: ``fps`` outside (0, 60], a camera the model does not have, a log of another
-            model, or a reference of more than 3 columns.
+            model, a reference of more than 3 columns, or a ``speed`` or ``until`` that gives no
+            frame or more than :data:`labsupport.plots.MAX_FRAMES`.
     """
     if not (np.isfinite(fps) and 0 < fps <= 60):
         raise ValueError(f"fps must be in (0, 60], got {fps!r}")
@@ -174,8 +182,7 @@ def render_run(
     camera = _camera_id(model, camera)
     dt = model.opt.timestep
     n = len(log.t)
-    duration = n * dt
-    frame_steps = np.minimum((np.arange(int(duration * fps)) / fps / dt).round().astype(int), n - 1)
+    frame_steps = frame_indices(n, dt, fps, speed, until)
     stride = max(1, int(round(trace_step / dt)))
     trail_idx = np.arange(0, n, stride)
     ee_trail, target_trail = _trails(model, log, trail_idx)

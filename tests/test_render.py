@@ -507,3 +507,54 @@ def test_a_picture_names_a_bad_path_and_needs_a_description():
         render.render_picture(model, data, camera="front")
     with pytest.raises(ValueError):
         render.show_picture(model, data, description="arm")
+
+
+def test_frame_indices_pick_the_sample_nearest_each_frame_time():
+    """Frame i of a video at f frames/s played at speed s shows the sample nearest t = i s / f;
+    ``until`` ends the span; a span shorter than a frame shows its first sample, and a video
+    of too many frames is refused."""
+    dt, n = 0.002, 2500  # 5 s of 2 ms samples
+    frames = plots.frame_indices(n, dt, fps=12)
+    assert len(frames) == 60  # 5 s at 12 frames/s
+    np.testing.assert_array_equal(frames[:4], [0, 42, 83, 125])  # t = 0, 1/12, 2/12, 3/12 s
+    slow = plots.frame_indices(n, dt, fps=12, speed=0.25, until=1.0)
+    assert len(slow) == 48  # the first second, four times slower: 4 s of video
+    np.testing.assert_array_equal(slow[::4], frames[:12])  # every 4th slow frame is a real-time one
+    assert slow[-1] * dt < 1.0 and plots.frame_indices(n, dt, fps=12, until=99.0).tolist() == frames.tolist()
+    fast = plots.frame_indices(n, dt, fps=25, speed=2.0)
+    np.testing.assert_array_equal(fast, np.arange(0, n, 40)[:62])  # 2 s of run per second of video, 2.5 s
+    assert plots.frame_indices(n, dt, fps=12, until=0.05).tolist() == [0] == plots.frame_indices(5, dt, fps=12).tolist()
+    with pytest.raises(ValueError, match=r"7200 frames, more than 1800: replay a part of the run \(until=\)"):
+        plots.frame_indices(n, dt, fps=60, speed=1 / 24)
+    for bad in (dict(speed=0.0), dict(speed=np.nan), dict(until=-1.0), dict(until="1 s")):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            plots.frame_indices(n, dt, fps=12, **bad)
+
+
+SLOW_SCRIPT = r"""
+import json
+import numpy as np
+import labsupport
+from labsupport import render
+from labsupport.plants import load_model
+from labsupport.sim import simulate
+model, data = load_model("spatial_3r")
+def swing(model, data):  # PD with gravity compensation toward a pose half a radian away
+    return data.qfrc_bias + 60.0 * (np.array([0.5, 0.8, -0.2]) - data.qpos) - 8.0 * data.qvel
+log = simulate(model, data, swing, 2.0, q0=[0.0, 0.5, -0.5], site="end_effector")
+real = render.render_run(model, log, fps=6, progress=False)
+slow = render.render_run(model, log, fps=6, speed=0.5, until=1.0, progress=False)
+print(json.dumps({"real": len(real), "slow": len(slow),
+                  "same": [bool(np.array_equal(slow[2 * i], real[i])) for i in range(6)],
+                  "between": float(np.abs(slow[1].astype(int) - real[0].astype(int)).mean())}))
+"""
+
+
+@pytest.mark.skipif(not gl.egl_works(), reason="EGL cannot open a display on this machine")
+def test_a_slowed_replay_of_part_of_a_run_shows_the_same_instants_with_frames_between(tmp_path):
+    """Half speed over the first second: twice the frames of that second, every other one the
+    real-time replay's frame of the same instant, pixel for pixel, the others in between."""
+    result = _run_script(tmp_path, SLOW_SCRIPT)
+    assert result["real"] == 12 and result["slow"] == 12, result
+    assert all(result["same"]), result
+    assert result["between"] > 0.05, result  # the arm moved between the two instants
