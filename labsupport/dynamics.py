@@ -47,6 +47,7 @@ if _version(mujoco.__version__) < OLDEST_MUJOCO:
 #: True on MuJoCo >= 4, where ``mj_fullM(model, data, dst)`` replaced ``mj_fullM(model, dst, qM)``.
 FULLM_TAKES_DATA = not hasattr(mujoco.MjData, "qM")
 
+
 def mass_matrix(model: mujoco.MjModel, data: mujoco.MjData, out: np.ndarray | None = None) -> np.ndarray:
     r"""Dense joint-space inertia matrix :math:`M(q)` of shape ``(nv, nv)``.
 

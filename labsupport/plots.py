@@ -285,9 +285,7 @@ def circle_tracking_figure(runs: Mapping[str, object], desired_path):
 MAX_FRAMES = 1800
 
 
-def frame_indices(
-    n_samples: int, dt: float, fps: float, speed: float = 1.0, until: float | None = None
-) -> np.ndarray:
+def frame_indices(n_samples: int, dt: float, fps: float, speed: float = 1.0, until: float | None = None) -> np.ndarray:
     r"""Which samples (spaced ``dt`` seconds, the first at :math:`t = 0`) a video at ``fps`` frames
     per second shows when it plays them at ``speed`` times real time (0.25: four times slower),
     up to ``until`` seconds into the samples (all of them by default): frame :math:`i` shows the
