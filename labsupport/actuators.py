@@ -94,10 +94,13 @@ def servo_ctrl(servo: Servo, q, qdot, tau, out: np.ndarray | None = None) -> np.
     >>> print(u, servo_force(servo, q, qdot, u))
     [0.406] [12.]
     """
-    u = np.multiply(servo.kv, qdot, out=out)  # k_v qdot
-    u += tau  # k_v qdot + tau
-    u /= servo.kp  # (k_v qdot + tau) / k_p
-    u += q  # q + (k_v qdot + tau) / k_p
+    try:
+        u = np.multiply(servo.kv, qdot, out=out)  # k_v qdot
+        u += tau  # k_v qdot + tau
+        u /= servo.kp  # (k_v qdot + tau) / k_p
+        u += q  # q + (k_v qdot + tau) / k_p
+    except (TypeError, ValueError):
+        raise _bad_inputs("servo_ctrl", servo, q=q, qdot=qdot, tau=tau) from None
     return u
 
 
@@ -108,9 +111,27 @@ def servo_force(servo: Servo, q, qdot, ctrl) -> np.ndarray:
     Row by row on arrays of shape ``(N, nu)``: with a :class:`labsupport.sim.Log`,
     ``servo_force(servo, log.q, log.qdot, log.ctrl)`` is the torque each step applied.
     """
-    u = np.clip(np.asarray(ctrl, dtype=float), servo.ctrl_lo, servo.ctrl_hi)
-    f = servo.kp * (u - q) - servo.kv * np.asarray(qdot)
+    try:
+        u = np.clip(np.asarray(ctrl, dtype=float), servo.ctrl_lo, servo.ctrl_hi)
+        f = servo.kp * (u - q) - servo.kv * np.asarray(qdot, dtype=float)
+    except (TypeError, ValueError):
+        f = None
+    if f is None or not np.isfinite(f).all():  # None becomes NaN in an array
+        raise _bad_inputs("servo_force", servo, q=q, qdot=qdot, ctrl=ctrl)
     return np.clip(f, servo.force_lo, servo.force_hi)
+
+
+def _bad_inputs(function: str, servo: Servo, **inputs) -> ValueError:
+    """The error for inputs NumPy could not combine with the servos: what each one was."""
+    nu, names = len(servo.kp), list(inputs)
+    got = ", ".join(
+        f"{name} of shape {np.shape(value)}" if isinstance(value, np.ndarray) else f"{name} = {validate.short(value)}"
+        for name, value in inputs.items()
+    )
+    return ValueError(
+        f"{function}: {', '.join(names[:-1])} and {names[-1]} must be finite numbers of shape ({nu},), "
+        f"one per servo, or (N, {nu}) for N states; got {got}"
+    )
 
 
 def servo_actuation(model: mujoco.MjModel):

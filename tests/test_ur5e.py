@@ -514,3 +514,20 @@ def test_tracking_law_refuses_a_singular_jacobian(ur, circle):
         tracking_torque(
             model, data, site, circle.pos[0], circle.vel[0], circle.acc[0], QUAT_D, LAB_GAINS, dt_kv, arrays
         )
+
+
+def test_servo_mappings_name_inputs_they_cannot_use(ur):
+    """Text, a wrong length or a None among the inputs: a plain error naming what each input was,
+    not NumPy's broadcast or dtype message."""
+    model, data = ur
+    servo = Servo.from_model(model)
+    q, qdot = data.qpos.copy(), data.qvel.copy()
+    for bad in ("abc", np.zeros(5), [1, 2, 3, 4, 5, "x"]):
+        with pytest.raises(ValueError, match=r"servo_ctrl: q, qdot and tau must be finite numbers of shape \(6,\)"):
+            servo_ctrl(servo, q, qdot, bad)
+        with pytest.raises(ValueError, match=r"servo_force: q, qdot and ctrl must be finite numbers .* \(N, 6\)"):
+            servo_force(servo, q, qdot, bad)
+    with pytest.raises(ValueError, match=r"got q of shape \(6,\), qdot = None, tau of shape \(6,\)"):
+        servo_ctrl(servo, q, None, np.zeros(6))
+    with pytest.raises(ValueError, match="qdot = None"):
+        servo_force(servo, q, None, np.zeros(6))
