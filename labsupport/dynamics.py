@@ -168,7 +168,7 @@ def site_jacobian(
     """
     sid = site_id(model, site)
     if out is None:
-        out = np.zeros((6, model.nv))
+        out = np.empty((6, model.nv))  # mj_jacSite fills every entry
     try:
         mujoco.mj_jacSite(model, data, out[:3], out[3:], sid)
     except TypeError:
@@ -208,7 +208,7 @@ def site_jdot_qdot(
         validate.model_and_data(model, data)
         raise
     try:
-        return np.dot(jdot, data.qvel, out=out)
+        return jdot.dot(data.qvel, out=out)
     except (TypeError, ValueError):
         raise _bad_out("site_jdot_qdot", out, (6,)) from None
 
