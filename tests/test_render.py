@@ -558,3 +558,51 @@ def test_a_slowed_replay_of_part_of_a_run_shows_the_same_instants_with_frames_be
     assert result["real"] == 12 and result["slow"] == 12, result
     assert all(result["same"]), result
     assert result["between"] > 0.05, result  # the arm moved between the two instants
+
+
+OVER_SCRIPT = r"""
+import dataclasses, json
+import labsupport  # first: picks the OpenGL backend before MuJoCo loads
+import mujoco
+import numpy as np
+from labsupport import render, trajectories
+from labsupport.controllers.operational_space import os_ct_torque
+from labsupport.dynamics import site_jacobian
+from labsupport.plants import load_model
+from labsupport.sim import simulate
+model, data = load_model("spatial_3r")
+ref = trajectories.sample(lambda t: trajectories.circle_3d(t, (1.0, 0.0, 1.5), 0.3, (0, 0, 1), 0.5),
+                          model.opt.timestep, 2.0)
+start = ref.at(0.0)
+rho, h = np.hypot(*start.pos[:2]), start.pos[2] - 1.0  # the tip's place in the arm's vertical plane
+theta = np.arccos((rho**2 + h**2 - 2.0) / 2.0)
+q0 = np.array([np.arctan2(start.pos[1], start.pos[0]),
+               np.arctan2(rho, h) - np.arctan2(np.sin(theta), 1.0 + np.cos(theta)), theta - np.pi / 2])
+data.qpos[:] = q0
+mujoco.mj_forward(model, data)
+qdot0 = np.linalg.solve(site_jacobian(model, data, "end_effector")[:3], start.vel)  # moving with the circle
+def track(model, data):
+    r = ref.at(data.time)
+    return os_ct_torque(model, data, "end_effector", r.pos, r.vel, r.acc, 64.0, 16.0)
+log = simulate(model, data, track, 2.0, q0=q0, qdot0=qdot0, site="end_effector", reference=ref)
+bare = dataclasses.replace(log, ref=np.empty((len(log.t), 0)))  # the same run without its reference
+last = {name: render.render_run(model, run, fps=4, progress=False, target_body="none")[-1].astype(int)
+        for name, run in (("both", log), ("red only", bare))}
+red_only, both = last["red only"], last["both"]
+core = (red_only[..., 0] - np.maximum(red_only[..., 1], red_only[..., 2])) > 140  # the red trace's pixels
+bluish = (both[..., 2] - np.maximum(both[..., 0], both[..., 1])) > 60
+print(json.dumps({"gap_mm": float(1e3 * np.abs(log.err).max()), "core": int(core.sum()),
+                  "blue_on_core": int(bluish[core].sum()), "blue": int(bluish.sum())}))
+"""
+
+
+@pytest.mark.skipif(not gl.egl_works(), reason="EGL cannot open a display on this machine")
+def test_the_red_trace_shows_whole_over_a_reference_it_keeps_to(tmp_path):
+    """A 3R run that keeps within a fraction of a millimetre of its circle: the pixels of its red
+    trace stay red when the blue reference is drawn too (before, the two flickered where they
+    coincide, and about a fifth of the red trace showed blue), and the wider blue band shows
+    beside it."""
+    result = _run_script(tmp_path, OVER_SCRIPT)
+    assert result["gap_mm"] < 0.5 and result["core"] > 100, result
+    assert result["blue_on_core"] <= 0.02 * result["core"], result
+    assert result["blue"] > 0.5 * result["core"], result
