@@ -180,7 +180,8 @@ def single_joint_figure(
 
 def closed_form_figure(panels: Mapping[str, Mapping[str, tuple]], ylabel: str):
     """Simulations (dots) on top of their closed forms (lines), one panel per title; each
-    panel maps a label to ``(t, closed_form, simulated)``; the panels share the y axis."""
+    panel maps a label to ``(t, closed_form, simulated)``; the panels share the y axis, with
+    room above the highest curve for the legends."""
     fig, axes = _figure(3.6, 1, len(panels), sharey=True)
     for ax, (title, curves) in zip(axes[0], panels.items(), strict=True):
         for label, (t, closed_form, simulated), style, color in _styled(curves):
@@ -188,7 +189,10 @@ def closed_form_figure(panels: Mapping[str, Mapping[str, tuple]], ylabel: str):
             _points(ax, t, simulated, "o", ms=3, color=color)
         ax.set(title=title, xlabel="time [s]")
         ax.grid(True, alpha=0.4)
-        ax.legend(fontsize=8)
+    bottom, top = axes[0, 0].get_ylim()
+    axes[0, 0].set_ylim(bottom, top + 0.35 * (top - bottom))  # shared: every panel
+    for ax in axes[0]:
+        ax.legend(fontsize=8, loc="upper left")
     axes[0, 0].set_ylabel(ylabel)
     return fig
 
