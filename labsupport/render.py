@@ -179,8 +179,8 @@ def render_run(
 
     Raises:
         ValueError: ``fps`` outside (0, 60], a camera the model does not have, a log of another
-            model, a reference of more than 3 columns, or a ``speed`` or ``until`` that gives no
-            frame or more than :data:`labsupport.plots.MAX_FRAMES`.
+            model, a reference of more than 3 columns, a ``speed`` or ``until`` that is not a
+            positive number, or a video of more than :data:`labsupport.plots.MAX_FRAMES` frames.
     """
     if not (np.isfinite(fps) and 0 < fps <= 60):
         raise ValueError(f"fps must be in (0, 60], got {fps!r}")
