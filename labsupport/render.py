@@ -30,9 +30,11 @@ from labsupport.grading import BATCH_ENV
 from labsupport.plots import frame_indices
 from labsupport.sim import Log, site_positions
 
-#: Blue target trace and red end-effector trace, as in the lab.
+#: Blue target trace and red end-effector trace, as in the lab; their widths in pixels (the
+#: red one narrower, drawn over the blue: see :func:`render_run`).
 TARGET_RGBA = np.array([0.0, 0.2, 1.0, 1.0], dtype=np.float32)
 EE_RGBA = np.array([1.0, 0.0, 0.0, 0.8], dtype=np.float32)
+TARGET_WIDTH, EE_WIDTH = 6.0, 3.0
 
 INSTALL_HINT = (
     "On Linux, install an OpenGL library that works without a display and restart the kernel: "
@@ -160,13 +162,14 @@ def render_run(
     """Frames (F, height, width, 3) replaying a run's :class:`labsupport.sim.Log`.
 
     Each frame shows the robot at the logged joint angles and, up to that instant, the traces
-    (every ``trace_step`` seconds) of the reference (blue, 6 pixels wide) and of the site the run
-    logged (red, 3 pixels, drawn over the blue one: where the site keeps to the reference, a red
-    line runs inside a blue band; see :func:`nearer_camera`). A planar reference (``log.ref`` of 2
-    columns) is drawn in the plane the site moves in: its missing coordinates are the site's. A
-    mocap body ``target_body``, if the model has one, follows a 3-D reference, held at
-    ``target_quat`` (w, x, y, z) when given. Works for any run of :func:`labsupport.sim.simulate`;
-    without ``site=`` there is nothing to trace and only the robot is shown.
+    (every ``trace_step`` seconds) of the reference (blue, :data:`TARGET_WIDTH` pixels wide) and
+    of the site the run logged (red, :data:`EE_WIDTH` pixels, drawn over the blue one: where the
+    site keeps to the reference, a red line runs inside a blue band; see :func:`nearer_camera`).
+    A planar reference (``log.ref`` of 2 columns) is drawn in the plane the site moves in: its
+    missing coordinates are the site's. A mocap body ``target_body``, if the model has one,
+    follows a 3-D reference, held at ``target_quat`` (w, x, y, z) when given. Works for any run
+    of :func:`labsupport.sim.simulate`; without ``site=`` there is nothing to trace and only the
+    robot is shown.
 
     ``camera`` is a camera of the model (name or id), by default its first one, or MuJoCo's
     free camera (-1) for a model without cameras. Shadows and reflections are off: software
@@ -217,8 +220,8 @@ def render_run(
             renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
             renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
             upto = int(np.searchsorted(trail_idx, k, side="right"))
-            add_trace(renderer.scene, target_trail[:upto], 6.0, TARGET_RGBA)
-            add_trace(renderer.scene, nearer_camera(renderer.scene, ee_trail[:upto], lift), 3.0, EE_RGBA)
+            add_trace(renderer.scene, target_trail[:upto], TARGET_WIDTH, TARGET_RGBA)
+            add_trace(renderer.scene, nearer_camera(renderer.scene, ee_trail[:upto], lift), EE_WIDTH, EE_RGBA)
             frames[i] = renderer.render()
             if bar is not None:
                 bar.update(1)
@@ -249,7 +252,7 @@ def render_picture(
     try:
         renderer.update_scene(data, camera=camera)
         if points is not None:
-            add_trace(renderer.scene, points, 3.0, TARGET_RGBA)
+            add_trace(renderer.scene, points, TARGET_WIDTH, TARGET_RGBA)
         return renderer.render()
     finally:
         renderer.close()
