@@ -251,7 +251,7 @@ def jacobian_solve(
     z = np.empty(d)
     mujoco.mju_cholSolve(z, JJt, rhs)  # z = (J J^T)^-1 y
     try:
-        return np.dot(J.T, z, out=out)  # x = J^T z
+        return J.T.dot(z, out=out)  # x = J^T z
     except (TypeError, ValueError):
         raise _bad_out("jacobian_solve", out, (nv,)) from None
 
