@@ -230,6 +230,8 @@ def reaching_figure(runs: Mapping[str, object], q_d, target, reach: tuple[float,
     _points(ax, *target, "r*", ms=12, label="target")
     ax.set_aspect("equal")
     ax.set(xlabel="x [m]", ylabel="y [m]", title="end-effector path")
+    # below the panel: inside, any place would hide part of a workspace circle
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2)
     ax = axes[2, 1]
     for label, log, style, color in _styled(runs):
         distance = 1000 * np.linalg.norm(log.ee[:, :2] - target, axis=1)
@@ -237,7 +239,8 @@ def reaching_figure(runs: Mapping[str, object], q_d, target, reach: tuple[float,
     ax.set(xlabel="time [s]", ylabel="distance [mm]", title="distance to the target")
     for ax in axes.flat:
         ax.grid(True, alpha=0.4)
-        ax.legend(fontsize=9)
+        if ax is not axes[2, 0]:
+            ax.legend(fontsize=9)
     return fig
 
 

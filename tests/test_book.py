@@ -146,6 +146,22 @@ def test_error_panels_show_desired_minus_actual():
     plt.close(fig)
 
 
+def test_the_reaching_paths_legend_hides_no_workspace_circle():
+    """The path panel's workspace circles fill the panel, so a legend inside it (matplotlib's
+    "best" place was the left edge) hid part of the outer circle: it sits below the panel, in
+    full, with every run and both markers."""
+    t = np.linspace(0.0, 1.0, 11)
+    fig = plots.reaching_figure({"PD": _log(t, 0.1, 2), "CT": _log(t, 0.01, 2)}, [0.0, 0.0], [0.5, 0.5], (0.1, 1.0))
+    fig.canvas.draw()
+    (panel,) = [ax for ax in fig.axes if ax.get_title() == "end-effector path"]
+    legend = panel.get_legend()
+    assert [text.get_text() for text in legend.get_texts()] == ["PD", "CT", "start", "target"]
+    box, frame = panel.get_window_extent(), legend.get_window_extent()
+    assert frame.y1 < box.y0 and box.x0 <= frame.x0 and frame.x1 <= box.x1 + 1
+    assert frame.y0 >= fig.bbox.y0
+    plt.close(fig)
+
+
 @pytest.mark.parametrize("dpi", [80, 90])
 @pytest.mark.parametrize("name", ["reaching", "circle", "side_by_side", "stacked", "closed_form"])
 def test_the_shared_figures_fit_the_text_column(name, dpi):
