@@ -975,15 +975,41 @@ def test_a_law_that_inverts_the_mass_matrix_is_named_and_not_blamed_on_the_time_
 
 
 def test_a_computed_torque_with_too_large_a_kd_is_told_its_own_limit():
-    """Computed torque's velocity poles are Kd itself: Kd·Δt above RK4's 2.785 diverges whatever
-    the inertia, and the limit told is 2.785 / Δt."""
+    """Computed torque's velocity poles are Kd itself: Kd·Δt above 2 diverges whatever the
+    inertia, and the limit told is 2 / Δt."""
     model = common.arm_model()
     folded = np.array([0.0, 0.0, np.pi / 2])
     ct = ct_law(np.matmul)
-    assert stiff_damping(model, lambda m, d: ct(m, d, folded, 100.0, 1300.0), folded, np.zeros(3)) is None
+    assert stiff_damping(model, lambda m, d: ct(m, d, folded, 100.0, 950.0), folded, np.zeros(3)) is None
     text = stiff_damping(model, lambda m, d: ct(m, d, folded, 100.0, 2000.0), folded, np.array([0.3, -0.2, 0.5]))
-    assert "M(q)·Kd with Kd = 2000 1/s" in text and "λ·Δt = 4 is above the 2.785" in text
-    assert f"below {2.785 / 0.002:.3g} 1/s" in text
+    assert "M(q)·Kd with Kd = 2000 1/s" in text and "λ·Δt = 4 is above 2, the most" in text
+    assert f"below {2 / 0.002:.3g} 1/s" in text
+
+
+@pytest.mark.parametrize("kd_dt", [1.9, 2.1])
+def test_the_limit_told_is_where_a_held_torque_diverges_under_rk4(kd_dt):
+    """The stability limit is that of the torque held over each step, Kd·Δt/M = 2, not RK4's own
+    2.785 for a damping it evaluates at every stage: the 3R arm under computed torque (velocity
+    pole Kd), integrated with RK4, settles at Kd·Δt = 1.9 and runs away at 2.1, and the verdict
+    says so on both sides."""
+    from labsupport.sim import SimulationDiverged, simulate
+
+    model = common.arm_model()
+    assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
+    q_d = np.array([0.3, 0.4, 1.2])
+    kd = kd_dt / model.opt.timestep
+    ct = ct_law(np.matmul)
+    law = lambda m, d: ct(m, d, q_d, 100.0, kd)  # noqa: E731
+    data = mujoco.MjData(model)
+    start = q_d + 0.01, np.array([0.2, -0.1, 0.3])
+    verdict = stiff_damping(model, law, *start)
+    if kd_dt < 2:
+        log = simulate(model, data, law, 1.0, q0=start[0], qdot0=start[1])
+        assert np.abs(log.qdot[-1]).max() < 0.01 and verdict is None  # the speeds die out
+    else:
+        with pytest.raises(SimulationDiverged):
+            simulate(model, data, law, 1.0, q0=start[0], qdot0=start[1])
+        assert "too stiff" in verdict and "λ·Δt = 2.1 is above 2" in verdict
 
 
 def test_an_operational_space_spring_of_the_wrong_sign_is_not_blamed_on_the_time_step(tmp_path, monkeypatch):

@@ -4,10 +4,11 @@ A run can diverge for two different reasons, and the cure differs:
 
 * the **law** is unstable (a sign error, a missing term): the continuous closed loop itself
   runs away, and no time step helps;
-* the **discretisation** is: the law is fine, but its damping is too stiff for an explicit
-  integrator at this time step. A joint with inertia :math:`M` under damping :math:`K_d` has the
-  velocity pole :math:`-K_d/M`; an explicit method is stable only while
-  :math:`K_d\,\Delta t / M` stays below a limit (2 for explicit Euler, about 2.785 for RK4).
+* the **sampling** is: the law is fine, but its damping is too stiff for the time step. A joint
+  with inertia :math:`M` under damping :math:`K_d` has the velocity pole :math:`-K_d/M`. The
+  loop computes the torque once per step and holds it over the step, whatever the integrator
+  (RK4's four stages all see the same torque), so each step multiplies the velocity by
+  :math:`1 - K_d\,\Delta t/M`: stable only while :math:`K_d\,\Delta t / M < 2`.
   Problem 1's PD at the lab's gains hits this near the folded arm, where the pan inertia falls
   to about 0.004 kg·m².
 
@@ -28,12 +29,11 @@ import numpy as np
 
 from labsupport.dynamics import mass_matrix
 
-#: Largest :math:`\lambda\Delta t` for which each explicit integrator damps :math:`\dot x = -\lambda x`.
-STABILITY_LIMIT = {
-    int(mujoco.mjtIntegrator.mjINT_EULER): 2.0,
-    int(mujoco.mjtIntegrator.mjINT_RK4): 2.785,
-}
-_INTEGRATOR_NAME = {int(mujoco.mjtIntegrator.mjINT_EULER): "explicit Euler", int(mujoco.mjtIntegrator.mjINT_RK4): "RK4"}
+#: Largest :math:`\lambda\Delta t` for which a damping applied by the controller stays stable: a
+#: torque computed from :math:`\dot q_k` and held over the step gives
+#: :math:`\dot q_{k+1} = (1 - \lambda\Delta t)\,\dot q_k`, whatever the integrator (an implicit one
+#: treats only the model's own damping implicitly, not the controller's).
+STABILITY_LIMIT = 2.0
 _JOINT_NAMES = ("pan joint 1", "joint 2", "joint 3")
 
 
@@ -101,11 +101,11 @@ _REMEDIES = (
 
 
 def stiff_damping(model: mujoco.MjModel, torque: Callable, q, qdot, t: float = 0.0) -> str | None:
-    r"""If the controller's damping at this state is too stiff for the integrator at this time
-    step, say so with the numbers and what to do; ``None`` if it is not.
+    r"""If the controller's damping at this state is too stiff for the time step, say so with the
+    numbers and what to do; ``None`` if it is not.
 
     The verdict is the fastest velocity pole :math:`\lambda` (:func:`fastest_velocity_pole`):
-    too stiff when :math:`\lambda\Delta t` exceeds the integrator's limit. The words depend on the
+    too stiff when :math:`\lambda\Delta t` exceeds :data:`STABILITY_LIMIT`. The words depend on the
     damping's shape, found from :math:`D` itself: the same :math:`K_d` on every joint (PD: too
     stiff where a joint's inertia is small), :math:`M K_d` (computed torque: :math:`K_d` itself
     too large) or :math:`M^{-1}K_d` (the mass matrix inverted where it should multiply). A
@@ -116,9 +116,9 @@ def stiff_damping(model: mujoco.MjModel, torque: Callable, q, qdot, t: float = 0
     Args:
         torque: the controller, ``torque(model, data) -> tau``.
     """
-    limit = STABILITY_LIMIT.get(int(model.opt.integrator))
-    if limit is None or not (np.all(np.isfinite(q)) and np.all(np.isfinite(qdot))):
-        return None  # implicit integrators handle stiff damping; nothing to judge on a bad state
+    limit = STABILITY_LIMIT
+    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qdot))):
+        return None  # nothing to judge on a bad state
     try:
         D, M = effective_damping(model, torque, q, qdot, t)
     except Exception:  # the student's controller may fail on the probing states
@@ -129,8 +129,7 @@ def stiff_damping(model: mujoco.MjModel, torque: Callable, q, qdot, t: float = 0
     rate = fastest_velocity_pole(D, M)
     if rate * dt <= limit:
         return None
-    integrator = _INTEGRATOR_NAME[int(model.opt.integrator)]
-    above = f"above the {limit:g} that {integrator} can integrate"
+    above = f"above {limit:g}, the most that a torque held over each time step can damp"
     when = f"From t = {t:.3f} s on"
     eye = np.eye(model.nv)
     kd = multiple_of(D, eye)
@@ -143,8 +142,9 @@ def stiff_damping(model: mujoco.MjModel, torque: Callable, q, qdot, t: float = 0
             return (
                 f"the damping is too stiff for the time step. {when}, the {name} has inertia "
                 f"M = {inertia:.4g} kg·m² and your controller's damping is Kd = {kd:.3g} N·m·s/rad on every "
-                f"joint, so Kd·Δt/M = {kd:.3g} × {dt:g} / {inertia:.4g} = {ratios[j]:.3g}, {above} (explicit "
-                "discretisation of a stiff damping term; the law itself would settle). Remedies: a smaller time "
+                f"joint, so Kd·Δt/M = {kd:.3g} × {dt:g} / {inertia:.4g} = {ratios[j]:.3g}, {above} (the controller "
+                "reads the speed once per step and holds its torque, so each step reverses the joint's speed and "
+                "makes it larger; the continuous law would settle). Remedies: a smaller time "
                 f"step (Δt < {limit * inertia / kd:.2g} s here), a lower Kd (below {limit * inertia / dt:.3g} "
                 f"N·m·s/rad for this joint), " + _REMEDIES
             )
