@@ -12,7 +12,9 @@ trajectory ``(N, 2)`` goes through one call.
 
 The two inverse-kinematics branches are named as in the lab: ``"up"`` is
 :math:`q_2 = +\arccos D \ge 0` (the lab's ``elbow_up=True``), ``"down"`` is
-:math:`q_2 \le 0`.
+:math:`q_2 \le 0`. The names follow the lab, not the picture:
+:math:`q_2 > 0` puts the elbow clockwise of the line from the base to the
+target, below it (with :math:`y` up) for a target in front of the arm.
 """
 
 from __future__ import annotations
