@@ -178,15 +178,23 @@ def single_joint_figure(
     return fig
 
 
+#: How many simulated samples :func:`closed_form_figure` marks on each curve: few enough that
+#: the closed form's line style shows between the (hollow) markers.
+SIMULATION_MARKS = 13
+
+
 def closed_form_figure(panels: Mapping[str, Mapping[str, tuple]], ylabel: str):
-    """Simulations (dots) on top of their closed forms (lines), one panel per title; each
-    panel maps a label to ``(t, closed_form, simulated)``; the panels share the y axis, with
-    room above the highest curve for the legends."""
+    """Simulations (hollow circles at :data:`SIMULATION_MARKS` evenly spread samples) on top of
+    their closed forms (lines), one panel per title; each panel maps a label to
+    ``(t, closed_form, simulated)``; the panels share the y axis, with room above the highest
+    curve for the legends, which name the markers too."""
     fig, axes = _figure(3.6, 1, len(panels), sharey=True)
     for ax, (title, curves) in zip(axes[0], panels.items(), strict=True):
         for label, (t, closed_form, simulated), style, color in _styled(curves):
             ax.plot(t, closed_form, style, color=color, label=label)
-            _points(ax, t, simulated, "o", ms=3, color=color)
+            marks = np.unique(np.linspace(0, len(t) - 1, SIMULATION_MARKS).round().astype(int))
+            _points(ax, np.asarray(t)[marks], np.asarray(simulated)[marks], "o", ms=5, color=color, mfc="none")
+        _points(ax, [], [], "o", ms=5, color="0.3", mfc="none", label="simulated (circles)")
         ax.set(title=title, xlabel="time [s]")
         ax.grid(True, alpha=0.4)
     bottom, top = axes[0, 0].get_ylim()

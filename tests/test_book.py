@@ -146,6 +146,23 @@ def test_error_panels_show_desired_minus_actual():
     plt.close(fig)
 
 
+def test_the_closed_form_figure_lets_each_line_style_show_between_the_simulated_marks():
+    """The simulations were drawn as a dot at every sample, which covered the closed forms'
+    line styles, the one cue besides colour: now a few hollow circles per curve, named in the
+    legend."""
+    t = np.linspace(0.0, 30.0, 301)
+    fig = plots.closed_form_figure({"p": {"a": (t, t, t + 0.01), "b": (t, 2 * t, 2 * t)}}, "y")
+    (ax,) = fig.axes
+    marks = [line for line in ax.lines if line.get_marker() == "o"]
+    assert len(marks) == 3  # two runs and the legend's entry
+    for line in marks[:2]:
+        assert 2 <= len(line.get_xdata()) <= plots.SIMULATION_MARKS and line.get_markerfacecolor() == "none"
+    np.testing.assert_allclose(marks[0].get_ydata(), marks[0].get_xdata() + 0.01)
+    labels = [text.get_text() for text in ax.get_legend().get_texts()]
+    assert labels == ["a", "b", "simulated (circles)"]
+    plt.close(fig)
+
+
 def test_the_reaching_paths_legend_hides_no_workspace_circle():
     """The path panel's workspace circles fill the panel, so a legend inside it (matplotlib's
     "best" place was the left edge) hid part of the outer circle: it sits below the panel, in
