@@ -48,6 +48,15 @@ if _version(mujoco.__version__) < OLDEST_MUJOCO:
 FULLM_TAKES_DATA = not hasattr(mujoco.MjData, "qM")
 
 
+def _made_for(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    """``ValueError`` unless ``data`` was made for ``model``: MuJoCo would read the data of
+    another model past its arrays without a word. Cheap when it was (``MjData.model`` is the
+    model the data was made with); a copy of the model, or anything else, is checked size by
+    size (:func:`labsupport.validate.model_and_data`)."""
+    if getattr(data, "model", None) is not model:
+        validate.model_and_data(model, data)
+
+
 def mass_matrix(model: mujoco.MjModel, data: mujoco.MjData, out: np.ndarray | None = None) -> np.ndarray:
     r"""Dense joint-space inertia matrix :math:`M(q)` of shape ``(nv, nv)``.
 
@@ -62,6 +71,7 @@ def mass_matrix(model: mujoco.MjModel, data: mujoco.MjData, out: np.ndarray | No
     >>> print(mass_matrix(model, data))
     [[0.5]]
     """
+    _made_for(model, data)
     try:
         if out is None:
             out = np.zeros((model.nv, model.nv))
@@ -92,6 +102,7 @@ def mass_times(model: mujoco.MjModel, data: mujoco.MjData, v: np.ndarray, out: n
     >>> print(mass_times(model, data, [2.0]))
     [1.]
     """
+    _made_for(model, data)
     try:
         if out is None:
             out = np.empty(model.nv)
@@ -137,6 +148,7 @@ def solve_mass(model: mujoco.MjModel, data: mujoco.MjData, rhs: np.ndarray) -> n
     ``rhs`` is ``(nv,)`` or ``(k, nv)`` (one right-hand side per row). With ``J`` as ``rhs``
     the rows of the result are those of :math:`J M^{-1}` (:math:`M` is symmetric).
     """
+    _made_for(model, data)
     y = np.ascontiguousarray(rhs, dtype=float)
     x = np.empty_like(y)
     try:
@@ -166,6 +178,7 @@ def site_jacobian(
     >>> print(J.shape, f"{J[2, 0]:.3f}")
     (6, 1) 0.200
     """
+    _made_for(model, data)
     sid = site_id(model, site)
     if out is None:
         out = np.empty((6, model.nv))  # mj_jacSite fills every entry
@@ -200,6 +213,7 @@ def site_jdot_qdot(
     >>> print(f"{site_jdot_qdot(model, data, 'tip')[0]:.3f} m/s²")
     -0.800 m/s²
     """
+    _made_for(model, data)
     sid = site_id(model, site)
     jdot = np.empty((6, model.nv))
     try:
@@ -287,6 +301,6 @@ def site_id(model: mujoco.MjModel, site: int | str) -> int:
     """The id of a site given by name, or already by id; ``ValueError`` naming the model's sites
     for a name it does not have or an id out of its range (MuJoCo itself would read past its
     arrays)."""
-    if type(site) is int and 0 <= site < model.nsite:  # the laws' case, every step: first and cheap
+    if type(site) is int and 0 <= site < getattr(model, "nsite", -1):  # the laws' case, every step: first and cheap
         return site
     return validate.model_object(model, "site", site)

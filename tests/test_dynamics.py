@@ -1,5 +1,6 @@
 """labsupport.dynamics against independent computations (MuJoCo's own products, finite differences)."""
 
+import copy
 import re
 import subprocess
 import sys
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 
 from labsupport import dynamics
+from labsupport.plants import load_model
 
 # A small spatial 3-DOF arm with offsets, so that M, J and Jdot are all non-trivial.
 ARM = """
@@ -101,7 +103,9 @@ def test_mass_matrix_uses_the_mujoco3_signature_when_qM_exists(monkeypatch):
 
     monkeypatch.setattr(dynamics, "FULLM_TAKES_DATA", False)
     monkeypatch.setattr(dynamics.mujoco, "mj_fullM", fake_fullm)
-    out = dynamics.mass_matrix(Model(), Data3())
+    model, data = Model(), Data3()
+    data.model = model  # as an MjData knows the MjModel it was made with
+    out = dynamics.mass_matrix(model, data)
     assert calls and calls[0] is Data3.qM and np.all(out == 7.0)
 
 
@@ -324,6 +328,32 @@ def test_the_helpers_name_an_array_they_cannot_fill(arm, call, message):
     """MuJoCo's own TypeErrors (a pybind11 signature dump for a wrong dtype) used to reach the caller."""
     with pytest.raises(ValueError, match=message):
         call(*arm)
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda m, d: dynamics.mass_matrix(m, d),
+        lambda m, d: dynamics.mass_times(m, d, np.ones(3)),
+        lambda m, d: dynamics.solve_mass(m, d, np.ones(3)),
+        lambda m, d: dynamics.site_jacobian(m, d, 0),
+        lambda m, d: dynamics.site_jdot_qdot(m, d, 0),
+        lambda m, d: dynamics.task_space_inertia(m, d, np.eye(3)),
+    ],
+)
+def test_the_helpers_refuse_the_data_of_another_model_and_swapped_arguments(arm, call):
+    """MuJoCo 4 raises nothing for a data made for another model and reads it past its arrays
+    (the 3R arm's mass matrix from the single joint's data came out as numbers); and model and
+    data swapped, with a site given by id, used to end in an AttributeError. A copy of the model
+    is still accepted."""
+    model, data = arm
+    mujoco.mj_forward(model, data)
+    _, other_data = load_model("single_joint")
+    with pytest.raises(ValueError, match=r"data was made for another model: its nq = 1 \(the model's 3\)"):
+        call(model, other_data)
+    with pytest.raises(ValueError, match="model and data are swapped"):
+        call(data, model)
+    np.testing.assert_array_equal(call(copy.copy(model), data), call(model, data))
 
 
 def test_the_oldest_mujoco_is_the_one_pyproject_admits():
