@@ -33,7 +33,8 @@ def rms(error, axis=0):
 
 
 def rms_norm(error):
-    r"""RMS of the error vector's norm, :math:`\sqrt{\tfrac1N\sum_k \lVert e_k\rVert^2}`, for ``(N, d)`` errors.
+    r"""RMS of the error vector's norm, :math:`\sqrt{\tfrac1N\sum_k \lVert e_k\rVert^2}`, for ``(N, d)``
+    errors; ``(N,)`` errors are N samples of one component (the norm of each is its size).
 
     Example: two planar errors of 5 mm each, in different directions.
 
@@ -41,6 +42,8 @@ def rms_norm(error):
     0.005
     """
     error = _samples(error)
+    if error.ndim == 1:  # one component per sample, not one vector
+        error = error[:, None]
     return float(np.sqrt(np.mean(np.sum(error**2, axis=-1))))
 
 
@@ -151,8 +154,15 @@ def second_order_error(t, e0, edot0, wn: float, zeta: float):
     r"""Closed-form free response of :math:`\ddot e + 2\zeta\omega_n\dot e + \omega_n^2 e = 0` from
     :math:`e(0)=e_0`, :math:`\dot e(0)=\dot e_0` (any :math:`\zeta>0`); broadcasts over components.
     """
-    t = validate.times(t)[..., None] if np.ndim(e0) else validate.times(t)
-    e0, edot0 = np.asarray(e0, dtype=float), np.asarray(edot0, dtype=float)
+    e0 = validate.vector("e0", e0, np.shape(e0)) if np.ndim(e0) else validate.number("e0", e0)
+    edot0 = validate.vector("edot0", edot0, np.shape(edot0)) if np.ndim(edot0) else validate.number("edot0", edot0)
+    try:
+        e0, edot0 = (np.asarray(x, dtype=float) for x in np.broadcast_arrays(e0, edot0))
+    except ValueError:
+        raise ValueError(
+            f"e0 and edot0 must have the same number of components, got shapes {np.shape(e0)} and {np.shape(edot0)}"
+        ) from None
+    t = validate.times(t)[..., None] if e0.ndim else validate.times(t)
     wn, zeta = _natural_frequency_and_damping(wn, zeta)
     a = zeta * wn
     if zeta < 1:
@@ -189,7 +199,7 @@ def rotation_error(xmat, quat_d, out=None, work=None) -> np.ndarray:
         mujoco.mju_negQuat(quat_d_inv, quat_d)  # q_d^-1
     except TypeError:
         raise ValueError(f"quat_d must be a quaternion (w, x, y, z) of 4 floats, got {quat_d!r}") from None
-    if abs(mujoco.mju_normalize4(quat_d_inv) - 1.0) > 1e-6:  # its norm
+    if not abs(mujoco.mju_normalize4(quat_d_inv) - 1.0) <= 1e-6:  # its norm (NaN fails too)
         raise ValueError(f"quat_d must be a unit quaternion (w, x, y, z), got {quat_d!r}")
     mujoco.mju_mulQuat(quat, quat, quat_d_inv)  # q q_d^-1
     mujoco.mju_quat2Vel(out, quat, 1.0)  # its rotation vector
@@ -219,6 +229,8 @@ def rms_position_error(log, after: float = 0.0) -> float:
 def orientation_error(log, quat_d) -> np.ndarray:
     r"""(N, 3) rotation errors :math:`\log(R_k R_d^\top)` of the logged site orientations
     ``log.ee_rot`` against the constant target orientation ``quat_d`` (w, x, y, z) [rad]."""
+    if _log(log).ee_rot.shape[1:] != (3, 3):
+        raise ValueError("the log has no site orientation: pass site= to simulate to record one")
     return np.array([rotation_error(rot, quat_d) for rot in _log(log).ee_rot]).reshape(len(log.t), 3)
 
 

@@ -302,3 +302,38 @@ def test_laws_are_their_equations_at_a_state():
         tau_ff + 2.4
     )
     assert pi_speed_torque(2.0, 1.5, 0.8, 1.0, 3.0, 4.0, theta0=0.5) == pytest.approx(3.0 * 0.2 + 4.0 * (2.0 - 1.0))
+
+
+def test_rms_norm_of_one_component_per_sample_is_its_rms():
+    """A 1-D error was summed over all its samples as if it were one vector: √N too large."""
+    error = np.full(100, 0.01)
+    assert metrics.rms_norm(error) == pytest.approx(0.01) == metrics.rms(error)
+    assert metrics.rms_norm(error) == pytest.approx(metrics.rms_norm(error[:, None]))
+
+
+def test_the_free_response_broadcasts_a_scalar_start_over_vector_rates():
+    """``e0`` a number and ``edot0`` a vector paired each time with one component (shape (2,)
+    for two times, a NumPy error for three); each component must be its own response, checked
+    against an ODE solution."""
+    t = np.linspace(0.0, 2.0, 5)
+    both = metrics.second_order_error(t, 0.1, [0.0, 1.0], 2.0, 0.5)
+    assert both.shape == (5, 2)
+    for j, rate in enumerate((0.0, 1.0)):
+        ode = solve_ivp(
+            lambda s, x: [x[1], -2.0 * x[1] - 4.0 * x[0]], (0, 2), [0.1, rate], t_eval=t, rtol=1e-10, atol=1e-12
+        )
+        np.testing.assert_allclose(both[:, j], ode.y[0], atol=1e-8)
+    with pytest.raises(ValueError, match="same number of components"):
+        metrics.second_order_error(t, [0.1, 0.2, 0.3], [0.0, 1.0], 2.0, 0.5)
+    for bad, message in ((None, "e0 must be finite"), ("1", "not text")):
+        with pytest.raises(ValueError, match=message):
+            metrics.second_order_error(t, bad, 0.0, 2.0, 0.5)
+
+
+def test_orientation_measures_name_a_missing_site_and_a_nan_target():
+    model, data = load_model("single_joint")
+    log = sim.simulate(model, data, lambda m, d: np.zeros(1), 0.01)
+    with pytest.raises(ValueError, match="no site orientation: pass site="):
+        metrics.rms_orientation_error(log, (1.0, 0.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match="unit quaternion"):
+        metrics.rotation_error(np.eye(3), (np.nan, 0.0, 0.0, 0.0))
