@@ -68,13 +68,34 @@ SINGLE_JOINT_QUANTITIES = {
     "speed": ("ω [rad/s]", lambda log, ref: log.qdot[:, 0]),
     "torque": ("τ [N·m]", lambda log, ref: log.tau[:, 0]),
     "effort": ("∫τ² dt [N²·m²·s]", lambda log, ref: cumulative_effort(log.t, log.tau[:, 0])),
-    "error": (r"$\theta_d - \theta$ [deg]", lambda log, ref: np.degrees(ref(log.t).pos - log.q[:, 0])),
+    "error": (r"$\theta_d - \theta$ [deg]", lambda log, ref: np.degrees(_desired_angle(ref, log.t) - log.q[:, 0])),
 }
+
+
+def _desired_angle(reference, t) -> np.ndarray:
+    """The joint angle ``reference(t).pos`` at the times ``t``, shape ``(N,)`` whether the
+    reference gives ``(N,)`` or ``(N, 1)`` (a set point of one joint), or a ``ValueError``."""
+    try:
+        return np.asarray(reference(t).pos, dtype=float).reshape(len(t))
+    except (AttributeError, TypeError, ValueError):
+        raise ValueError(
+            "reference must be a function of the time array t returning a Reference whose pos holds one "
+            f"angle per time (shape ({len(t)},)), such as lambda t: versine(t, move); got {validate.short(reference)}"
+        ) from None
+
+
 _LINE_STYLES = ("-", "--", "-.", ":")
 #: Line width of a desired curve: a wide grey band under the runs, told apart by its width.
 REFERENCE_WIDTH = 5.0
 #: Markers that tell runs apart where line styles already tell joints apart.
 _RUN_MARKERS = ("", "o", "s", "^")
+
+
+def _runs(runs) -> Mapping[str, object]:
+    """``runs`` if it maps labels to logs, at least one, else a ``ValueError`` saying so."""
+    if not isinstance(runs, Mapping) or not runs:
+        raise ValueError(f"runs must map a label to each run's Log, e.g. {{'PD': log}}; got {validate.short(runs)}")
+    return runs
 
 
 def _styled(runs: Mapping[str, object]) -> list[tuple[str, object, str, str]]:
@@ -83,7 +104,7 @@ def _styled(runs: Mapping[str, object]) -> list[tuple[str, object, str, str]]:
     reference band or the workspace's circles would otherwise shift Matplotlib's colour cycle)."""
     return [
         (label, run, style, f"C{i}")
-        for i, ((label, run), style) in enumerate(zip(runs.items(), itertools.cycle(_LINE_STYLES)))
+        for i, ((label, run), style) in enumerate(zip(_runs(runs).items(), itertools.cycle(_LINE_STYLES)))
     ]
 
 
@@ -121,9 +142,9 @@ def single_joint_panel(
     if quantity == "error" and reference is None:
         raise ValueError("an error panel needs the reference: pass reference=<function of t>")
     ylabel, read = SINGLE_JOINT_QUANTITIES[quantity]
-    first = next(iter(runs.values()))
+    first = next(iter(_runs(runs).values()))
     if reference is not None and quantity == "angle":
-        desired = np.degrees(reference(first.t).pos)
+        desired = np.degrees(_desired_angle(reference, first.t))
         ax.plot(first.t, desired, color="0.6", lw=REFERENCE_WIDTH, alpha=0.6, label="desired")
     for label, log, style, color in _styled(runs):
         ax.plot(log.t, read(log, reference), style, color=color, label=label)
@@ -156,6 +177,7 @@ def single_joint_figure(
     :func:`single_joint_panel` (``level`` goes on the first panel); ``titles`` name the panels in
     order; the legend is on every side-by-side panel, on the top one when stacked.
     """
+    quantities = [quantities] if isinstance(quantities, str) else list(quantities)  # one panel by name
     n = len(quantities)
     shape, height = ((1, n), 3.4) if side_by_side else ((n, 1), 1.1 + 1.8 * n)
     fig, axes = _figure(height, *shape, sharex=not side_by_side)

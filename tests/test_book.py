@@ -205,3 +205,25 @@ def test_the_shared_figures_fit_the_text_column(name, dpi):
     plt.close(fig)
     width = int.from_bytes(buffer.getvalue()[16:20], "big")
     assert plots.TEXT_COLUMN_PX - 40 <= width <= plots.TEXT_COLUMN_PX, width
+
+
+def test_a_one_joint_set_point_gives_one_error_curve_and_misuse_is_named():
+    """A set point's ``pos`` has shape (N, 1), which minus ``log.q[:, 0]`` (N,) broadcast to N×N:
+    the error panel drew 300 curves. Also: one quantity named as a string, and no runs."""
+    from labsupport.plants import SingleJoint
+    from labsupport.trajectories import set_point
+
+    log = SingleJoint().simulate(lambda t, s: 0.1, 0.3)
+    fig = plots.single_joint_figure({"run": log}, ["error"], reference=lambda t: set_point(t, [0.5]))
+    (ax,) = fig.axes
+    (line,) = ax.lines
+    np.testing.assert_allclose(line.get_ydata(), np.degrees(0.5 - log.q[:, 0]))
+    plt.close(fig)
+    fig = plots.single_joint_figure({"run": log}, "angle")
+    assert len(fig.axes) == 1 and fig.axes[0].get_ylabel() == "θ [deg]"
+    plt.close(fig)
+    with pytest.raises(ValueError, match="runs must map a label to each run's Log"):
+        plots.single_joint_figure({}, ["angle"])
+    with pytest.raises(ValueError, match="one angle per time"):
+        plots.single_joint_figure({"run": log}, ["error"], reference=lambda t: 0.5)
+    plt.close("all")
