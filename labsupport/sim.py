@@ -227,6 +227,11 @@ def simulate(
         raise ValueError(
             f"controller must be a function controller(model, data) -> tau, got {validate.short(controller)}"
         )
+    if reference is not None and not callable(reference):
+        raise ValueError(
+            "reference must be a function of time returning a Reference (for a fixed target: "
+            f"lambda t: trajectories.set_point(t, x)), got {validate.short(reference)}"
+        )
     if actuation is not None and not callable(actuation):
         raise ValueError(
             f"actuation must be a function actuation(model, data, tau) -> ctrl, got {validate.short(actuation)}"
@@ -518,10 +523,23 @@ def _evaluate(reference, t) -> np.ndarray:
 
 def site_poses(model: mujoco.MjModel, q: np.ndarray, site: str | int) -> tuple[np.ndarray, np.ndarray]:
     """Positions (N, 3) and orientations (N, 3, 3) of ``site`` (name or id) at the
-    configurations ``q`` (N, nq), by forward kinematics on a scratch ``MjData`` (after
-    ``mj_step`` the kinematics in ``data`` belong to the integrator's last evaluation, so
-    logged poses are recomputed with this)."""
+    configurations ``q`` (N, nq; one configuration (nq,) gives N = 1), by forward kinematics on
+    a scratch ``MjData`` (after ``mj_step`` the kinematics in ``data`` belong to the
+    integrator's last evaluation, so logged poses are recomputed with this)."""
+    validate.mujoco_model(model)
     site_id = dynamics.site_id(model, site)
+    try:
+        rows = np.asarray(q, dtype=float)
+    except (TypeError, ValueError):
+        rows = np.empty(0)  # not numbers: refused below
+    if rows.ndim == 1 and rows.size == model.nq:
+        rows = rows[None]  # one configuration
+    if rows.ndim != 2 or rows.shape[1] != model.nq:
+        raise ValueError(
+            f"q must hold one configuration per row, shape (N, {model.nq}) (or ({model.nq},) for one), "
+            f"got {validate.short(q)}"
+        )
+    q = rows
     scratch = mujoco.MjData(model)
     qpos, xpos, xmat = scratch.qpos, scratch.site_xpos[site_id], scratch.site_xmat[site_id]
     pos, rot = np.empty((len(q), 3)), np.empty((len(q), 9))

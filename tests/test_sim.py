@@ -615,3 +615,28 @@ def test_a_controller_failing_or_returning_text_is_named_with_the_time(arm):
     for returned in ("abc", {"tau": 1.0}):
         with pytest.raises(ValueError, match="the controller returned .*not numbers; it must return a torque of shape"):
             sim.simulate(model, data, lambda m, d, r=returned: r, 0.1)
+
+
+def test_site_positions_of_one_configuration_and_bad_configurations():
+    """One configuration (nq,) was read as nq configurations of one joint each: the 2R's
+    q = (0.1, 0.2) gave two rows, for (0.1, 0.1) and (0.2, 0.2)."""
+    from labsupport.kinematics import planar_2r
+
+    model, _ = load_model("planar_2r")
+    (row,) = sim.site_positions(model, np.array([0.1, 0.2]), "end_effector")
+    np.testing.assert_allclose(row[:2], planar_2r.forward_kinematics(np.array([0.1, 0.2])), atol=1e-12)
+    for bad in ([0.1, 0.2, 0.3], 0.5, "ab", [[0.1, "a"]]):
+        with pytest.raises(ValueError, match=r"one configuration per row, shape \(N, 2\)"):
+            sim.site_positions(model, bad, "end_effector")
+
+
+def test_a_reference_given_as_a_value_is_named():
+    """A Reference (say, a set point evaluated once) where a function of time belongs ended in
+    "'Reference' object is not callable"."""
+    from labsupport.trajectories import set_point
+
+    model, data = load_model("planar_2r")
+    with pytest.raises(ValueError, match="reference must be a function of time"):
+        sim.simulate(
+            model, data, lambda m, d: np.zeros(2), 0.1, site="end_effector", reference=set_point(0.0, [0.5, 0.2])
+        )
