@@ -233,9 +233,10 @@ def within_reach(reference: SampledReference, anchor, radius: float) -> SampledR
 
     .. math:: x \leftarrow a + r\,\frac{x - a}{\lVert x - a\rVert}\quad\text{where}\quad \lVert x - a\rVert > r,
 
-    and its velocity and acceleration recomputed by finite differences on the grid, so the
-    feedforward matches the path that is actually tracked. Points inside the sphere keep their
-    position.
+    and its velocity and acceleration recomputed by finite differences on the grid (second
+    order, at the ends too) within two samples of a pulled-back point, so the feedforward
+    matches the path that is actually tracked. Elsewhere every sample keeps its position,
+    velocity and acceleration; a reference that is within reach everywhere comes back as it is.
     """
     if not isinstance(reference, SampledReference):
         raise ValueError(
@@ -245,7 +246,12 @@ def within_reach(reference: SampledReference, anchor, radius: float) -> SampledR
     radius = validate.number("radius", radius, positive=True)
     offset = reference.pos - anchor
     dist = np.linalg.norm(offset, axis=-1, keepdims=True)
-    pos = np.where(dist > radius, anchor + offset * (radius / np.maximum(dist, 1e-12)), reference.pos)
-    vel = np.gradient(pos, reference.dt, axis=0)
-    acc = np.gradient(vel, reference.dt, axis=0)
+    outside = dist > radius
+    if not outside.any():
+        return reference
+    pos = np.where(outside, anchor + offset * (radius / np.maximum(dist, 1e-12)), reference.pos)
+    near = np.convolve(outside[:, 0], np.ones(5), mode="same")[:, None] > 0  # within two samples
+    vel = np.gradient(pos, reference.dt, axis=0, edge_order=2)
+    acc = np.gradient(vel, reference.dt, axis=0, edge_order=2)
+    vel, acc = np.where(near, vel, reference.vel), np.where(near, acc, reference.acc)
     return SampledReference(reference.dt, pos, vel, acc, reference.offset)

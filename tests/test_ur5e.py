@@ -2,6 +2,7 @@
 
 import subprocess
 import sys
+from functools import partial
 
 import mujoco
 import numpy as np
@@ -488,7 +489,11 @@ def test_unreachable_target_is_pulled_back_and_the_limits_hold(ur):
 
 def test_within_reach_keeps_inner_points_and_differentiates_the_outer_path():
     dt = 0.002
-    line = trajectories.sample(lambda t: trajectories.Reference(np.c_[t, 0 * t, 0 * t], 0 * t, 0 * t), dt, 2.0)
+    line = trajectories.sample(
+        lambda t: trajectories.Reference(np.c_[t, 0 * t, 0 * t], np.c_[1 + 0 * t, 0 * t, 0 * t], np.zeros((t.size, 3))),
+        dt,
+        2.0,
+    )
     pulled = trajectories.within_reach(line, np.zeros(3), 1.0)
     inside = line.pos[:, 0] <= 1.0
     np.testing.assert_array_equal(pulled.pos[inside], line.pos[inside])
@@ -499,6 +504,26 @@ def test_within_reach_keeps_inner_points_and_differentiates_the_outer_path():
         trajectories.within_reach(line, np.zeros(3), -1.0)
     with pytest.raises(ValueError, match=r"takes a sampled reference \(trajectories.sample\(...\)\), got function"):
         trajectories.within_reach(lambda t: line(t), np.zeros(3), 1.0)
+
+
+def test_within_reach_keeps_the_exact_derivatives_away_from_the_pulled_back_points():
+    """First-order differences at the ends of the grid put the circle's acceleration at t = 0,
+    the first feedforward the run reads, off by half, even with no point pulled back."""
+    circle = trajectories.sample(
+        partial(trajectories.circle_2d, center=(0.5, 0.2), radius=0.15, period=6.0), 0.002, 6.0
+    )
+    assert trajectories.within_reach(circle, np.zeros(2), 5.0) is circle  # all within reach
+    anchor = np.array([0.5, 0.6])  # 0.25 to 0.55 m from the circle: its lowest arc is pulled back
+    pulled = trajectories.within_reach(circle, anchor, 0.5)
+    outside = np.linalg.norm(circle.pos - anchor, axis=1) > 0.5
+    assert 0 < outside.sum() < len(outside) / 2 and not outside[:3].any() and not outside[-3:].any()
+    far = np.convolve(outside, np.ones(5), mode="same") == 0
+    for name in ("pos", "vel", "acc"):  # the exact samples, the ends included
+        np.testing.assert_array_equal(getattr(pulled, name)[far], getattr(circle, name)[far])
+    arc = np.flatnonzero(outside)  # on the pulled-back arc: second differences of its positions
+    np.testing.assert_allclose(
+        pulled.acc[arc[5:-5]], np.diff(pulled.pos, 2, axis=0)[arc[5:-5] - 1] / circle.dt**2, atol=1e-6
+    )
 
 
 def test_tracking_law_refuses_a_singular_jacobian(ur, circle):
