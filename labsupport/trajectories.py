@@ -6,6 +6,7 @@ Scalars in, scalars out; arrays of times in, arrays out (vectorised with NumPy).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
@@ -170,7 +171,7 @@ class SampledReference:
     def index(self, t) -> int:
         """Index of the grid point nearest ``t``; ``ValueError`` for a time that is not a finite
         number or lies past the sampled span."""
-        k = int(validate.number("t", t) / self.dt + 0.5)
+        k = math.floor(validate.number("t", t) / self.dt + 0.5)
         if not 0 <= k < len(self.pos):
             raise ValueError(
                 f"t = {t!r} s is outside the sampled reference "
@@ -181,7 +182,7 @@ class SampledReference:
     def at(self, t) -> Reference:
         """``Reference(pos, vel, acc)`` at the grid point nearest ``t``."""
         try:
-            k = int(t / self.dt + 0.5)
+            k = math.floor(t / self.dt + 0.5)  # to the nearest, halves up (int() would take -0.9 to 0)
         except (TypeError, ValueError, OverflowError):  # not a finite number
             k = -1
         rows = self.rows
@@ -197,7 +198,7 @@ class SampledReference:
 
     def __call__(self, t) -> Reference:
         """The samples at the grid times ``t`` (a float or an array of them)."""
-        k = np.rint(np.asarray(t, dtype=float) / self.dt).astype(int)
+        k = np.floor(np.asarray(t, dtype=float) / self.dt + 0.5).astype(int)  # as at(): halves up
         if np.any((k < 0) | (k >= len(self.pos))):
             raise ValueError(f"some times are outside the sampled reference [0, {(len(self.pos) - 1) * self.dt:.6g}] s")
         return Reference(self.pos[k], self.vel[k], self.acc[k])
@@ -206,8 +207,9 @@ class SampledReference:
 def sample(
     reference: Callable[[np.ndarray], Reference], dt: float, duration: float, offset: float = 0.0
 ) -> SampledReference:
-    r"""Sample ``reference(t)`` on :math:`t_k = k\,\Delta t + \text{offset}`, :math:`0 \le k\,\Delta t \le`
-    ``duration`` plus two steps (the lab's loops take one step more than ``duration / dt``).
+    r"""Sample ``reference(t)`` on :math:`t_k = k\,\Delta t + \text{offset}`, :math:`k = 0, 1, \dots, n + 1`
+    with :math:`n` = ``round(duration / dt)``: one step past ``duration`` (the lab's loops take
+    one step more than ``duration / dt``).
 
     ``reference`` returns a :class:`Reference`. It is called once on the array of times (all
     references of this module are vectorised); one that only takes a float is called once per

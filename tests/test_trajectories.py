@@ -64,3 +64,17 @@ def test_a_set_point_holds_still_in_any_dimension():
     for bad, said in (("x", "not text"), ([[1.0, 2.0]], "1-D"), ([1.0, np.nan], "finite")):
         with pytest.raises(ValueError, match=said):
             tr.set_point(0.0, bad)
+
+
+def test_a_sampled_reference_rounds_alike_both_ways_and_refuses_times_before_its_start():
+    """``at(-1.4 dt)`` returned row 0 (int() rounds -0.9 toward zero), and ``at(2.5 dt)`` gave row 3
+    while calling the object at the same time gave row 2 (NumPy rounds halves to even)."""
+    dt = 0.1
+    ref = tr.sample(lambda t: tr.Reference(t, 0 * t, 0 * t), dt, 1.0)
+    assert len(ref.pos) == 12 and ref.pos[-1] == pytest.approx(1.1)  # one step past the duration
+    for t in (0.0, 0.04, 0.25, 0.35, 1.1):
+        assert ref.at(t).pos == ref(np.array([t])).pos[0] == ref.pos[ref.index(t)]
+    assert ref.at(-0.04).pos == 0.0  # nearest the first sample
+    for t in (-0.14, 1.2, float("nan")):
+        with pytest.raises(ValueError):
+            ref.at(t)
