@@ -253,7 +253,9 @@ def jacobian_solve(
     try:
         rank = mujoco.mju_cholFactor(JJt, min_pivot)  # J J^T = L L^T, in place
     except TypeError:
-        raise ValueError(f"jacobian_solve: min_pivot must be a number, got {validate.short(min_pivot)}") from None
+        rank = -1
+    if rank < 0 or not min_pivot > 0:  # a pivot of 0 or less would let a singular J through
+        raise ValueError(f"jacobian_solve: min_pivot must be a positive number, got {validate.short(min_pivot)}")
     if rank < d:
         if not np.isfinite(J).all():
             raise ValueError(f"the Jacobian has entries that are not finite (NaN or inf): {J.tolist()}")
@@ -280,6 +282,10 @@ def task_space_inertia(model: mujoco.MjModel, data: mujoco.MjData, jac: np.ndarr
     damping = validate.number("damping", damping, nonnegative=True)
     minv_jt = solve_mass(model, data, jac).T  # M^{-1} J^T, shape (nv, k)
     jac = np.asarray(jac, dtype=float)
+    if not np.isfinite(jac).all():
+        raise ValueError(
+            f"task_space_inertia: the Jacobian has entries that are not finite (NaN or inf): {jac.tolist()}"
+        )
     lam_inv = jac @ minv_jt
     if damping:
         lam_inv = lam_inv + damping * np.eye(lam_inv.shape[0])

@@ -318,7 +318,15 @@ def test_jacobian_solve_names_the_shapes_it_needs():
         (lambda m, d: dynamics.jacobian_solve(np.eye(3), np.ones(3), out=np.zeros(2)), r"jacobian_solve: out"),
         (lambda m, d: dynamics.jacobian_solve(np.eye(3), np.ones(3), out=np.zeros(3, int)), "got a int64 array"),
         (lambda m, d: dynamics.jacobian_solve(np.eye(3), np.ones(3), out=np.zeros((3, 2))[:, 0]), "not C-contiguous"),
-        (lambda m, d: dynamics.jacobian_solve(np.eye(3), np.ones(3), min_pivot="tiny"), "min_pivot must be a number"),
+        (
+            lambda m, d: dynamics.jacobian_solve(np.eye(3), np.ones(3), min_pivot="tiny"),
+            "min_pivot must be a positive number",
+        ),
+        (
+            lambda m, d: dynamics.jacobian_solve(np.ones((2, 2)), [1.0, 0.0], min_pivot=0.0),
+            "min_pivot must be a positive",
+        ),
+        (lambda m, d: dynamics.task_space_inertia(m, d, np.full((3, 3), np.nan)), "not finite"),
         (lambda m, d: dynamics.solve_mass(m, d, np.zeros(2)), r"rhs must have shape \(3,\) or \(k, 3\), got \(2,\)"),
         (lambda m, d: dynamics.solve_mass(m, d, np.zeros((3, 3, 3))), r"got \(3, 3, 3\)"),
         (lambda m, d: dynamics.task_space_inertia(m, d, np.eye(3), damping=-1.0), "damping must be non-negative"),
