@@ -185,8 +185,14 @@ def render_run(
             model, a reference of more than 3 columns, a ``speed`` or ``until`` that is not a
             positive number, or a video of more than :data:`labsupport.plots.MAX_FRAMES` frames.
     """
-    if not (np.isfinite(fps) and 0 < fps <= 60):
+    validate.mujoco_model(model)
+    if not all(hasattr(log, name) for name in ("t", "q", "ref", "site")):
+        raise ValueError(f"log must be the Log that labsupport.sim.simulate returns, got {validate.short(log)}")
+    if not 0 < validate.number("fps", fps) <= 60:
         raise ValueError(f"fps must be in (0, 60], got {fps!r}")
+    trace_step = validate.number("trace_step", trace_step, positive=True)
+    if target_quat is not None:
+        target_quat = validate.vector("target_quat (w, x, y, z)", target_quat, (4,))
     if log.q.shape[1:] != (model.nq,) or log.site >= model.nsite:
         raise ValueError(
             f"this log does not belong to this model: its rows hold {log.q.shape[-1]} joint positions "
@@ -208,7 +214,7 @@ def render_run(
     mocap = model.body_mocapid[body] if body >= 0 and log.ref.shape[1] == 3 else -1
     if mocap >= 0 and target_quat is not None:
         data.mocap_quat[mocap] = target_quat
-    frames = np.empty((len(frame_steps), height, width, 3), dtype=np.uint8)
+    frames = np.empty((len(frame_steps), renderer.height, renderer.width, 3), dtype=np.uint8)
     bar = _progress_bar(len(frame_steps)) if progress else None
     try:
         for i, k in enumerate(frame_steps):

@@ -350,6 +350,36 @@ def test_render_names_the_cameras_and_refuses_a_reference_beyond_3d():
         render.render_run(single, log)
     with pytest.raises(ValueError, match="fps must be positive"):
         plots.frame_indices(len(log.t), model.opt.timestep, fps=0)
+    for kwargs, message in (
+        ({"fps": "12"}, "fps must be numbers"),
+        ({"trace_step": None}, "trace_step must be finite"),
+        ({"target_quat": (1.0, 0.0, 0.0)}, r"target_quat \(w, x, y, z\) must have shape \(4,\)"),
+    ):
+        with pytest.raises(ValueError, match=message):
+            render.render_run(model, log, **kwargs)
+    with pytest.raises(ValueError, match="log must be the Log that labsupport.sim.simulate returns"):
+        render.render_run(model, None)
+
+
+FLOAT_SIZE_SCRIPT = r"""
+import json
+import numpy as np
+import labsupport
+from labsupport import render
+from labsupport.plants import load_model
+from labsupport.sim import simulate
+model, data = load_model("planar_2r")
+log = simulate(model, data, lambda model, data: np.zeros(2), 0.5, site="end_effector")
+frames = render.render_run(model, log, fps=4, width=64.0, height=48.0, progress=False)
+print(json.dumps(list(frames.shape)))
+"""
+
+
+@pytest.mark.skipif(not gl.egl_works(), reason="EGL cannot open a display on this machine")
+def test_a_size_given_as_a_float_renders(tmp_path):
+    """``make_renderer`` took ``width=64.0`` through ``int()``, but the frames' array did not:
+    "'float' object cannot be interpreted as an integer"."""
+    assert _run_script(tmp_path, FLOAT_SIZE_SCRIPT, MUJOCO_GL="egl")[1:] == [48, 64, 3]
 
 
 DEFAULTS_SCRIPT = r"""
