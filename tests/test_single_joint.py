@@ -337,3 +337,25 @@ def test_orientation_measures_name_a_missing_site_and_a_nan_target():
         metrics.rms_orientation_error(log, (1.0, 0.0, 0.0, 0.0))
     with pytest.raises(ValueError, match="unit quaternion"):
         metrics.rotation_error(np.eye(3), (np.nan, 0.0, 0.0, 0.0))
+
+
+def test_the_analytic_plant_names_a_torque_that_is_not_a_function_of_t_and_state():
+    """``torque=0.1``, ``lambda t: ...`` or a MuJoCo-style ``lambda model, data: ...`` ended in
+    a raw error from inside solve_ivp."""
+    for torque, message in (
+        (0.1, "torque must be a function torque"),
+        (lambda t: 0.1, "called as torque\\(t, state\\)"),
+        (lambda model, data: -data.qpos, "called as torque\\(t, state\\)"),
+    ):
+        with pytest.raises(ValueError, match=message):
+            SingleJoint().simulate(torque, 0.1)
+
+
+def test_load_model_points_to_the_ur5e_loader():
+    """``load_model("ur5e_scene")`` compiled the scene without its robot (nq = 0), and the list
+    of shipped models offered it."""
+    for name in ("ur5e", "ur5e_scene"):
+        with pytest.raises(ValueError, match=r"labsupport.ur5e.load_ur5e\(\)"):
+            load_model(name)
+    with pytest.raises(ValueError, match=r"shipped models are \['planar_2r', 'single_joint', 'spatial_3r'\]"):
+        load_model("2r")
