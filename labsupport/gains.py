@@ -85,7 +85,7 @@ def actuator_limited_gains(M: float, b: float, tau_max: float, initial_error: fl
     :math:`K_p = \tau_{\max}/|e_0|` and :math:`K_d = 2\sqrt{K_p M} - b` (critical damping).
     """
     tau_max = _positive("tau_max", tau_max)
-    e0 = _positive("|initial_error|", abs(initial_error))
+    e0 = _positive("|initial_error|", abs(validate.number("initial_error", initial_error)))
     Kp = tau_max / e0
     return pd_gains(M, b, np.sqrt(Kp / _positive("M", M)), 1.0)
 
@@ -100,7 +100,7 @@ def damping_for_overshoot(percent_overshoot: float) -> float:
     >>> print(f"{damping_for_overshoot(10.0):.4f}")
     0.5912
     """
-    os = float(percent_overshoot)
+    os = validate.number("percent_overshoot", percent_overshoot)
     if not 0 < os < 100:
         raise ValueError(f"percent_overshoot must be in (0, 100), got {percent_overshoot!r}")
     ln = np.log(os / 100)

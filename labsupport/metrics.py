@@ -66,7 +66,9 @@ def _step_response(y, t=None) -> tuple[np.ndarray, np.ndarray | None]:
     """A step response as float arrays: ``y`` one-dimensional with at least one sample and, if
     given, times ``t`` of the same length; a ``ValueError`` otherwise."""
     y = np.asarray(y, dtype=float)
-    t = None if t is None else np.asarray(t, dtype=float)
+    t = None if t is None else validate.times(t)
+    if t is not None and t.ndim == 1 and not np.all(np.diff(t) > 0):
+        raise ValueError("the times t must increase from sample to sample")
     if y.ndim != 1:
         raise ValueError(
             f"a step response is one coordinate over time (a 1-D array), got y of shape {y.shape}; "
@@ -97,7 +99,7 @@ def settling_time(t, y, final: float, initial: float, band: float = 0.02) -> flo
 
     Returns ``nan`` if the response is still outside the band at the end of the record.
     """
-    y, t = _step_response(y, t)
+    y, t = _step_response(y, validate.times(t))
     final, initial = validate.number("final", final), validate.number("initial", initial)
     band = validate.number("band", band, positive=True)
     if final == initial:
@@ -242,20 +244,28 @@ def rms_orientation_error(log, quat_d, after: float = 0.0) -> float:
 def peak_torque(log, applied=None) -> np.ndarray:
     r"""Largest :math:`|\tau|` of each actuator over the run: of the asked torque ``log.tau``,
     or of ``applied`` (N, nu), the torque the actuators actually exerted, when given."""
-    return np.abs(_log(log).tau if applied is None else applied).max(axis=0)
+    if applied is None:
+        return np.abs(_log(log).tau).max(axis=0)
+    return np.abs(_applied(log, applied)).max(axis=0)
 
 
 def saturation(log, applied) -> np.ndarray:
     """(N, nu) True where the actuators exerted another torque than the controller asked
     (a force or command limit bound); ``applied`` is the exerted torque, e.g.
     :func:`labsupport.actuators.servo_force` of the log."""
+    return ~np.isclose(_applied(log, applied), log.tau, rtol=1e-9, atol=1e-9)
+
+
+def _applied(log, applied) -> np.ndarray:
+    """``applied`` as an array shaped like ``log.tau`` (one exerted torque per step and
+    actuator), or a ``ValueError``."""
     applied = np.asarray(applied, dtype=float)
     if applied.shape != _log(log).tau.shape:
         raise ValueError(
             f"applied must hold one exerted torque per step and actuator, shape {log.tau.shape} as log.tau, "
             f"got shape {applied.shape}"
         )
-    return ~np.isclose(applied, log.tau, rtol=1e-9, atol=1e-9)
+    return applied
 
 
 def saturation_report(log, applied, names=None) -> str:
@@ -264,7 +274,9 @@ def saturation_report(log, applied, names=None) -> str:
     hits = saturation(log, applied)
     if not hits.any():
         return ""
-    names = [str(i) for i in range(hits.shape[1])] if names is None else list(names)
+    names = [str(i) for i in range(hits.shape[1])] if names is None else [str(name) for name in names]
+    if len(names) != hits.shape[1]:
+        raise ValueError(f"names must name each of the {hits.shape[1]} actuators, got {len(names)} names")
     joints = [names[i] for i in range(hits.shape[1]) if hits[:, i].any()]
     first = int(np.flatnonzero(hits.any(axis=1))[0])
     return (

@@ -333,6 +333,8 @@ def frame_indices(n_samples: int, dt: float, fps: float, speed: float = 1.0, unt
         ValueError: no samples, a non-positive ``fps``, ``dt``, ``speed`` or ``until``, or a
             video of more than :data:`MAX_FRAMES` frames.
     """
+    if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)):
+        raise ValueError(f"n_samples must be a whole number of samples, got {n_samples!r}")
     if n_samples <= 0:
         raise ValueError("there are no samples to animate")
     fps = validate.number("fps", fps, positive=True)

@@ -227,3 +227,9 @@ def test_a_one_joint_set_point_gives_one_error_curve_and_misuse_is_named():
     with pytest.raises(ValueError, match="one angle per time"):
         plots.single_joint_figure({"run": log}, ["error"], reference=lambda t: 0.5)
     plt.close("all")
+
+
+def test_frame_indices_need_a_whole_number_of_samples():
+    with pytest.raises(ValueError, match="n_samples must be a whole number"):
+        plots.frame_indices(10.5, 0.01, 12)
+    assert plots.frame_indices(np.int64(100), 0.01, 10).dtype.kind == "i"

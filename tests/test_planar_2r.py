@@ -165,3 +165,10 @@ def test_annulus_sample_is_seeded_and_reachable():
     np.testing.assert_array_equal(k2.sample_annulus(42), a)  # a seed makes the same generator
     with pytest.raises(ValueError, match=r"rng must be a NumPy generator, such as np.random.default_rng\(42\)"):
         k2.sample_annulus("42")
+
+
+def test_the_annulus_sampler_refuses_a_margin_that_is_not_a_distance():
+    """A negative margin let targets fall outside the workspace; None ended in a raw TypeError."""
+    for margin, message in ((-0.05, "margin must be non-negative"), (None, "margin must be finite")):
+        with pytest.raises(ValueError, match=message):
+            k2.sample_annulus(0, margin=margin)

@@ -359,3 +359,32 @@ def test_load_model_points_to_the_ur5e_loader():
             load_model(name)
     with pytest.raises(ValueError, match=r"shipped models are \['planar_2r', 'single_joint', 'spatial_3r'\]"):
         load_model("2r")
+
+
+def test_gains_and_settling_time_name_inputs_that_are_not_numbers():
+    """Text was read as a number ("10" as 10 %), None ended in a raw TypeError, and a settling
+    time was computed on times that run backwards."""
+    with pytest.raises(ValueError, match="percent_overshoot must be numbers, not text"):
+        gains.damping_for_overshoot("10")
+    with pytest.raises(ValueError, match="percent_overshoot must be a number, got the boolean"):
+        gains.damping_for_overshoot(True)
+    with pytest.raises(ValueError, match="initial_error must be finite"):
+        gains.actuator_limited_gains(0.5, 0.1, 2.0, None)
+    t = np.linspace(0.0, 1.0, 11)
+    y = 1.0 - np.exp(-5 * t)
+    with pytest.raises(ValueError, match="t must be a time in seconds"):
+        metrics.settling_time(None, y, 1.0, 0.0)
+    with pytest.raises(ValueError, match="must increase"):
+        metrics.settling_time(t[::-1], y, 1.0, 0.0)
+
+
+def test_the_saturation_measures_check_what_they_are_given():
+    model, data = load_model("planar_2r")
+    log = sim.simulate(model, data, lambda m, d: np.full(2, 5.0), 0.01)
+    applied = np.clip(log.tau, -1.0, 1.0)
+    assert "joints shoulder, elbow" in metrics.saturation_report(log, applied, names=["shoulder", "elbow"])
+    with pytest.raises(ValueError, match="names must name each of the 2 actuators, got 1"):
+        metrics.saturation_report(log, applied, names=["shoulder"])
+    with pytest.raises(ValueError, match="applied must hold one exerted torque per step and actuator"):
+        metrics.peak_torque(log, applied[:, :1])
+    np.testing.assert_array_equal(metrics.peak_torque(log, applied), [1.0, 1.0])

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from labsupport import validate
 from labsupport.trajectories import Reference
 
 BRANCHES = ("up", "down")
@@ -282,6 +283,7 @@ def sample_annulus(
             "rng must be a NumPy generator, such as np.random.default_rng(42), "
             f"or a whole-number seed, got {rng!r}"
         ) from None
+    margin = validate.number("margin", margin, nonnegative=True)
     lo, hi = arm.reach_min + margin, arm.reach_max - margin
     if not lo < hi:
         raise ValueError(
