@@ -307,6 +307,9 @@ def site_id(model: mujoco.MjModel, site: int | str) -> int:
     """The id of a site given by name, or already by id; ``ValueError`` naming the model's sites
     for a name it does not have or an id out of its range (MuJoCo itself would read past its
     arrays)."""
-    if type(site) is int and 0 <= site < getattr(model, "nsite", -1):  # the laws' case, every step: first and cheap
-        return site
+    try:
+        if type(site) is int and 0 <= site < model.nsite:  # the laws' case, every step: first and cheap
+            return site
+    except AttributeError:  # not a model (say, model and data swapped): model_object says so
+        pass
     return validate.model_object(model, "site", site)
