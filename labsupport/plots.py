@@ -149,7 +149,10 @@ def single_joint_panel(
     for label, log, style, color in _styled(runs):
         ax.plot(log.t, read(log, reference), style, color=color, label=label)
     if level is not None:
-        text, value = level
+        try:
+            text, value = level
+        except (TypeError, ValueError):
+            raise ValueError(f"level must be a pair (label, value), got {validate.short(level)}") from None
         ax.axhline(np.degrees(value) if quantity in ("angle", "rate") else value, color="gray", ls=":", label=text)
     if limit is not None and quantity == "torque":
         for sign in (-1, 1):
@@ -240,7 +243,7 @@ def reaching_figure(runs: Mapping[str, object], q_d, target, reach: tuple[float,
     end-effector path and the distance to the target in millimetres.
     """
     fig, axes = _figure(10.0, 3, 2)
-    target = np.asarray(target, dtype=float)
+    target = validate.vector("target (x, y)", target, (2,))
     for j in range(2):
         ax = axes[0, j]
         for label, log, style, color in _styled(runs):
@@ -374,9 +377,10 @@ def planar_arm_frames(
     Returns:
         ``(F, height, width, 3)`` uint8 array, for :func:`mediapy.show_video`.
     """
-    width, height = size
-    if width % 2 or height % 2:
-        raise ValueError(f"size must be even in both directions for H.264, got {size}")
+    width, height = validate.vector("size (width, height)", size, (2,))
+    if not (width == int(width) and height == int(height) and width > 0 and height > 0) or width % 2 or height % 2:
+        raise ValueError(f"size must be two positive even whole numbers of pixels (H.264), got {size}")
+    width, height = int(width), int(height)
     dpi = 80
     fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
     canvas = FigureCanvasAgg(fig)

@@ -193,6 +193,8 @@ def render_run(
     trace_step = validate.number("trace_step", trace_step, positive=True)
     if target_quat is not None:
         target_quat = validate.vector("target_quat (w, x, y, z)", target_quat, (4,))
+        if not abs(np.linalg.norm(target_quat) - 1.0) <= 1e-6:
+            raise ValueError(f"target_quat must be a unit quaternion (w, x, y, z), got {validate.short(target_quat)}")
     if log.q.shape[1:] != (model.nq,) or log.site >= model.nsite:
         raise ValueError(
             f"this log does not belong to this model: its rows hold {log.q.shape[-1]} joint positions "

@@ -233,3 +233,21 @@ def test_frame_indices_need_a_whole_number_of_samples():
     with pytest.raises(ValueError, match="n_samples must be a whole number"):
         plots.frame_indices(10.5, 0.01, 12)
     assert plots.frame_indices(np.int64(100), 0.01, 10).dtype.kind == "i"
+
+
+def test_figure_arguments_of_the_wrong_kind_are_named():
+    """A level that is not a (label, value) pair, a target with a third coordinate, and a video
+    size given as floats or odd numbers: each used to end in an unpacking or type error."""
+    from labsupport.kinematics.planar_2r import LAB_ARM
+
+    t = np.linspace(0.0, 1.0, 11)
+    with pytest.raises(ValueError, match=r"level must be a pair \(label, value\)"):
+        plots.single_joint_figure({"run": _log(t, 0.1, 1)}, ["angle"], level=0.5)
+    with pytest.raises(ValueError, match=r"target \(x, y\) must have shape \(2,\)"):
+        plots.reaching_figure({"run": _log(t, 0.1, 2)}, [0.0, 0.0], [0.5, 0.5, 0.1], (0.1, 1.0))
+    q = np.zeros((3, 2))
+    frames = plots.planar_arm_frames([dict(q=q, title="arm")], LAB_ARM, t=t[:3], size=(64.0, 48.0))
+    assert frames.shape[1:] == (48, 64, 3)
+    with pytest.raises(ValueError, match="two positive even whole numbers"):
+        plots.planar_arm_frames([dict(q=q, title="arm")], LAB_ARM, t=t[:3], size=(63, 48))
+    plt.close("all")
