@@ -386,8 +386,18 @@ def planar_arm_frames(
     canvas = FigureCanvasAgg(fig)
     axes = fig.subplots(1, len(panels), squeeze=False)[0]
     fig.subplots_adjust(left=0.02, right=0.98, bottom=0.02, top=0.9, wspace=0.05)
-    n = len(panels[0]["q"])
+    lengths = {len(panel["q"]) for panel in panels} | {len(panel["ref"]) for panel in panels if "ref" in panel}
+    if t is not None:
+        lengths.add(len(t))
+    if len(lengths) != 1:
+        raise ValueError(
+            "every panel's q (and ref), and t, must hold the same samples, one row per time; "
+            f"got lengths {sorted(lengths)}"
+        )
+    (n,) = lengths
     frames = np.arange(n) if frames is None else np.asarray(frames)
+    if frames.size and not (frames.min() >= 0 and frames.max() < n):
+        raise ValueError(f"frames must be sample indices in [0, {n - 1}], got {frames.min()} to {frames.max()}")
     reach = arm.l1 + arm.l2 + 0.05
     (x0, x1), (y0, y1) = limits if limits is not None else ((-reach, reach), (-reach, reach))
 

@@ -251,3 +251,16 @@ def test_figure_arguments_of_the_wrong_kind_are_named():
     with pytest.raises(ValueError, match="two positive even whole numbers"):
         plots.planar_arm_frames([dict(q=q, title="arm")], LAB_ARM, t=t[:3], size=(63, 48))
     plt.close("all")
+
+
+def test_planar_arm_frames_names_panels_of_different_lengths():
+    from labsupport.kinematics.planar_2r import LAB_ARM
+
+    q = np.zeros((3, 2))
+    with pytest.raises(ValueError, match=r"same samples, one row per time; got lengths \[2, 3\]"):
+        plots.planar_arm_frames([dict(q=q, title="a"), dict(q=q[:2], title="b")], LAB_ARM)
+    with pytest.raises(ValueError, match=r"got lengths \[3, 4\]"):
+        plots.planar_arm_frames([dict(q=q, title="a")], LAB_ARM, t=np.arange(4.0))
+    with pytest.raises(ValueError, match=r"frames must be sample indices in \[0, 2\]"):
+        plots.planar_arm_frames([dict(q=q, title="a")], LAB_ARM, frames=[0, 5])
+    plt.close("all")
