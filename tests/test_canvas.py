@@ -384,7 +384,8 @@ def test_report_lists_late_resubmissions_groups_and_scaling(round_trip):
 
 def test_feedback_files_carry_the_score_and_every_message_and_canvas_can_match_them(round_trip):
     result, out, _ = round_trip
-    assert set(result.feedback) == {1234, 1235, 1236, 1238, 1239, 1240, 1241}
+    # Patel Riya (1240) is excused in Canvas: no grade, and no feedback that would state one
+    assert set(result.feedback) == {1234, 1235, 1236, 1238, 1239, 1241}
     smith = result.feedback[1234]
     assert smith.name == "smithbob_1234_50001_feedback.txt"
     text = smith.read_text()
@@ -396,7 +397,7 @@ def test_feedback_files_carry_the_score_and_every_message_and_canvas_can_match_t
     # Canvas's Re-upload Submissions: the first two all-digit parts are the user and attachment ids
     with zipfile.ZipFile(out / "feedback_upload.zip") as zf:
         names = sorted(zf.namelist())
-    assert len(names) == 7
+    assert len(names) == 6
     for name in names:
         user_id, attachment_id = [p for p in name.split("_") if p.isdigit()][:2]
         submitted = next(e for e in ZIP_MEMBERS if e.startswith(name.removesuffix("_feedback.txt") + "_"))
@@ -408,7 +409,7 @@ def test_a_regrade_into_the_same_folder_leaves_no_stale_feedback(tmp_path):
     """The feedback files of an earlier zip used to stay in OUT/feedback beside the new ones."""
     out = tmp_path / "out"
     canvas.grade_canvas(FIXTURES / "submissions.zip", EXPORT, SPEC, out, grade=fake_grade([]))
-    assert len(list((out / "feedback").iterdir())) == 7
+    assert len(list((out / "feedback").iterdir())) == 6
     (out / "feedback" / "my notes.txt").write_text("the instructor's own file", encoding="utf-8")
     (out / "feedback" / "older_1_2_feedback.txt").write_text("problem1 feedback for someone", encoding="utf-8")
     members = {"smithbob_1234_50011_problem1_reaching-1.ipynb": fake_notebook(p1_ik=3)}
@@ -630,3 +631,63 @@ def test_end_to_end_with_the_real_batch_grader(tmp_path):
     assert after.cell(1234, after.header.index(COLUMN)) == "20"
     assert list(after.student_rows) == [1234]  # Ana sent no notebook: left out of the import
     assert (tmp_path / "out" / "batch" / "grades.csv").is_file()
+
+
+def test_a_rezipped_download_is_graded_as_the_original(tmp_path):
+    """Unzipped and zipped again on a Mac, the download holds its files in a folder, a
+    ``__MACOSX/`` copy of each and ``._`` resource forks. The folder put the feedback file's path
+    under feedback/ (a crash after grading, with no import written), and a ``._`` copy, which
+    is not a notebook, could be taken for the student's file and scored 0."""
+    real = fake_notebook(p1_ik=3, p1_pd=2, p1_ct=3, p1_reach=2)
+    members = {
+        "._smithbob_1234_50001_problem1_reaching.ipynb": b"\x00\x05\x16\x07 AppleDouble",
+        "submissions/smithbob_1234_50001_problem1_reaching.ipynb": real,
+        "__MACOSX/submissions/._smithbob_1234_50001_problem1_reaching.ipynb": b"\x00\x05\x16\x07",
+        "submissions/.DS_Store": b"\x00\x00\x00\x01Bud1",
+    }
+    out = tmp_path / "out"
+    result = canvas.grade_canvas(build_zip(tmp_path / "mac.zip", members), EXPORT, SPEC, out, grade=fake_grade([]))
+    assert result.scores[1234] == "20" and not result.unreadable
+    assert result.feedback[1234] == out / "feedback" / "smithbob_1234_50001_feedback.txt"
+    assert any("3 files the operating system added" in note for note in result.notes)
+    with zipfile.ZipFile(out / "feedback_upload.zip") as zf:
+        assert zf.namelist() == ["smithbob_1234_50001_feedback.txt"]
+
+
+def test_another_problems_notebook_is_left_out_not_scored_zero(tmp_path):
+    """The Problem 2 zip given with --problem problem1 wrote a 0 for every student, with a note
+    at the end of the report only."""
+    members = {"smithbob_1234_50001_problem2_tracking.ipynb": fake_notebook(p1_ik=0, p1_pd=0, p1_ct=0, p1_reach=0)}
+    result = canvas.grade_canvas(
+        build_zip(tmp_path / "p2.zip", members), EXPORT, SPEC, tmp_path / "out", grade=fake_grade([])
+    )
+    assert 1234 not in result.scores
+    assert any(
+        "problem2_tracking.ipynb is problem2's notebook" in m and "--problem problem2" in m for m in result.missing
+    )
+
+
+def test_a_bad_output_folder_or_spec_is_refused_before_grading(tmp_path):
+    calls = []
+    afile = tmp_path / "afile"
+    afile.write_text("not a folder")
+    with pytest.raises(ValueError, match="is a file: give --out a folder"):
+        canvas.grade_canvas(FIXTURES / "submissions.zip", EXPORT, SPEC, afile, grade=fake_grade(calls))
+    with pytest.raises(ValueError, match="cannot write the output folder"):
+        canvas.grade_canvas(FIXTURES / "submissions.zip", EXPORT, SPEC, afile / "sub", grade=fake_grade(calls))
+    wrong = tmp_path / "batch.json"
+    wrong.write_text('{"seed": 1, "date": "today"}')
+    with pytest.raises(ValueError, match="is not an autograder spec of this labsupport's checks"):
+        canvas.grade_canvas(FIXTURES / "submissions.zip", EXPORT, wrong, tmp_path / "out", grade=fake_grade(calls))
+    assert not calls
+
+
+def test_the_batch_grader_refuses_a_file_that_is_not_a_spec(tmp_path):
+    """``--spec`` given the batch's own batch.json graded every row as an error, then stopped
+    with KeyError: 'checks'."""
+    from labsupport.instructor.batch import run_batch
+
+    wrong = tmp_path / "batch.json"
+    wrong.write_text('{"seed": 1, "date": "today"}')
+    with pytest.raises(ValueError, match="is not an autograder spec of this labsupport's checks"):
+        run_batch(tmp_path, wrong, tmp_path / "out")

@@ -48,6 +48,27 @@ _CHECK_CELL = re.compile(r'^check\("([a-z0-9_]+)", globals\(\)\)\s*$')
 CARRIED_METADATA = ("mystnb",)
 
 
+def load_spec(path: Path) -> dict:
+    """The autograder spec at ``path`` (written by :func:`main`), or a ``ValueError`` that says
+    the file is not one: it must be JSON naming the problem and its checks with their points."""
+    try:
+        spec = json.loads(Path(path).read_text(encoding="utf-8"))
+        ok = (
+            isinstance(spec, dict)
+            and isinstance(spec.get("problem"), str)
+            and isinstance(spec.get("checks"), list)
+            and all(isinstance(c, dict) and "name" in c and float(c["points"]) >= 0 for c in spec["checks"])
+        )
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise ValueError(f"{path} is not an autograder spec of this labsupport's checks: {err}") from None
+    if not ok:
+        raise ValueError(
+            f"{path} is not an autograder spec of this labsupport's checks (no problem, or no checks with "
+            "points): pass --problem NAME, or a spec written by labsupport.instructor.assign"
+        )
+    return spec
+
+
 class MasterError(ValueError):
     """The master notebook does not follow the format (message says where)."""
 

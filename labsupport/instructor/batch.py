@@ -65,7 +65,7 @@ import mujoco
 import labsupport
 from labsupport.grading import registry
 from labsupport.instructor import isolation, judge
-from labsupport.instructor.assign import SPECS
+from labsupport.instructor.assign import SPECS, load_spec
 from labsupport.instructor.canvas import (
     FEEDBACK_HEADER,
     STRIP_OUTPUTS_BYTES,
@@ -194,7 +194,7 @@ def run_batch(
     if seed is not None and seed < 0:
         raise ValueError(f"the seed must be a whole number, 0 or more; got --seed {seed}")
     spec_path = Path(spec_path).resolve()
-    spec = json.loads(spec_path.read_text(encoding="utf-8"))
+    spec = load_spec(spec_path)
     if not Path(submissions).is_dir():
         raise ValueError(f"submissions must be a folder of .ipynb files; {submissions} is not a folder")
     files, aside = list_notebooks(submissions), left_aside(submissions)

@@ -97,7 +97,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
-from labsupport.instructor.assign import SPECS
+from labsupport.instructor.assign import SPECS, load_spec
 
 #: Largest notebook read from the zip [bytes]: reading one takes that much memory, and no
 #: student's notebook comes near it; a bigger file is reported, not graded.
@@ -229,11 +229,24 @@ class SubmissionFile:
     @property
     def prefix(self) -> str:
         """The entry name up to the attachment id: what Canvas reads back from a re-uploaded file."""
-        return self.entry[: len(self.entry) - len(self.original) - 1] if self.kind == "upload" else ""
+        base = PurePosixPath(self.entry.replace("\\", "/")).name  # a folder in the zip is not part of it
+        return base[: len(base) - len(self.original) - 1] if self.kind == "upload" else ""
 
     @property
     def is_notebook(self) -> bool:
         return self.kind == "upload" and self.original.lower().endswith(".ipynb")
+
+
+#: Files an operating system adds when it zips a folder: never a student's work.
+_OS_FILES = (".DS_Store", "Thumbs.db", "desktop.ini")
+
+
+def is_os_metadata(entry: str) -> bool:
+    """Whether a zip entry is a file the operating system added: macOS's ``__MACOSX/`` folder and
+    ``._`` copies (AppleDouble resource forks, not notebooks), ``.DS_Store``, Windows'
+    ``Thumbs.db``. A re-zipped download holds them; they are skipped, never graded."""
+    parts = entry.replace("\\", "/").split("/")
+    return "__MACOSX" in parts or parts[-1].startswith("._") or parts[-1] in _OS_FILES
 
 
 def parse_submission_name(entry: str) -> SubmissionFile | None:
@@ -625,7 +638,9 @@ def grade_canvas(
     one if None; ``OUT/batch/batch.json`` records it, so ``--seed`` reproduces every grade).
     """
     spec_path, out = Path(spec_path), Path(out)
-    spec = json.loads(spec_path.read_text(encoding="utf-8"))
+    spec = load_spec(spec_path)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out} is a file: give --out a folder (it is created if missing)")
     gradebook = read_gradebook(Path(gradebook_path))
     col = choose_column(gradebook, spec["problem"], column)
     result = CanvasResult(
@@ -642,7 +657,12 @@ def grade_canvas(
             f"{result.points_possible:g}/{result.maximum:g}"
         )
     chosen = _select_submissions(Path(submissions_zip), gradebook, spec, result)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ValueError(
+            f"cannot write the output folder {out} ({err.strerror}): give --out a folder you can write to"
+        ) from None
     rows = _grade(Path(submissions_zip), chosen, spec_path, out, result, grade or _run_batch(jobs, seed))
     _record_scores(gradebook, col, spec, chosen, rows, out, result)
     remove_stale_feedback(out / "feedback", {path.name for path in result.feedback.values()})
@@ -676,7 +696,14 @@ def _select_submissions(
     with zf:
         entries = safe_zip_entries(zf)
     by_user: dict[int, list[SubmissionFile]] = {}
+    skipped = [info.filename for info in entries if is_os_metadata(info.filename)]
+    if skipped:
+        result.notes.append(
+            f"{len(skipped)} files the operating system added to the zip (__MACOSX/, ._ copies, .DS_Store) skipped"
+        )
     for info in entries:
+        if is_os_metadata(info.filename):
+            continue
         f = parse_submission_name(info.filename)
         if f is None:
             result.unmatched.append(f"{info.filename}: not named as Canvas names submissions")
@@ -701,6 +728,13 @@ def _select_submissions(
         if pick is None:
             result.missing.append(f"{who} (ID {user}): no notebook in the zip; left out of the import")
             continue
+        other = _other_problem(pick.base_name, spec["problem"])
+        if other:
+            result.missing.append(
+                f"{who} (ID {user}): {pick.original} is {other}'s notebook, not {stem}.ipynb; left out of the "
+                f"import (grade that zip with --problem {other}, or this one by hand)"
+            )
+            continue
         chosen[user] = pick
         if pick.late:
             result.late.append(f"{who}: {pick.entry}")
@@ -719,6 +753,13 @@ def _select_submissions(
                 f"{gradebook.student_name(user)} (ID {user}): nothing in the zip; left out of the import"
             )
     return chosen
+
+
+def _other_problem(file_name: str, problem: str) -> str | None:
+    """The Problem a file is named after (``problem2`` in ``problem2_tracking.ipynb``) when it is
+    not ``problem``; None when the name names none, or this one."""
+    named, own = re.search(r"problem(\d+)", _plain(file_name)), re.search(r"problem(\d+)", _plain(problem))
+    return f"problem{named[1]}" if named and own and named[1] != own[1] else None
 
 
 def _zip_name(sortable_name: str) -> str:
@@ -785,6 +826,13 @@ def _record_scores(
         f, who = chosen[user], gradebook.student_name(user)
         total = sum(float(row["scores"].get(c["name"], 0.0)) for c in spec["checks"])
         score = format_score(scaled_score(total, result.maximum, result.points_possible))
+        previous = gradebook.cell(user, col).strip()
+        if previous.upper() in ("EX", "N/A"):  # excused: no grade, and no feedback that says one
+            result.not_scored.append(
+                f"{who}: {f.entry}: the cell says {previous} in Canvas and is left so, out of the import and "
+                f"without feedback (score {score})"
+            )
+            continue
         path = out / "feedback" / f"{f.prefix}_feedback.txt"
         path.write_text(feedback_text(who, f, spec, row, total, score, result), encoding="utf-8")
         result.feedback[user] = path
@@ -792,12 +840,6 @@ def _record_scores(
             reason = "; ".join(row.get("notes", [])[:1])
             result.not_scored.append(
                 f"{who}: {f.original}: {row.get('status')} ({reason}); left out of the import: grade again or by hand"
-            )
-            continue
-        previous = gradebook.cell(user, col).strip()
-        if previous.upper() in ("EX", "N/A"):
-            result.not_scored.append(
-                f"{who}: the cell says {previous} in Canvas and is left so, out of the import (score {score})"
             )
             continue
         if row.get("status") == "unreadable":
@@ -897,6 +939,11 @@ def main(argv=None) -> None:
     )
     args = parser.parse_args(argv)
     spec = args.spec or SPECS / f"{args.problem}.json"
+    if args.problem and not spec.is_file():
+        known = ", ".join(sorted(p.stem for p in SPECS.glob("*.json")))
+        parser.error(f"no autograder spec for --problem {args.problem}: the problems are {known}")
+    if args.jobs is not None and args.jobs < 1:
+        parser.error(f"--jobs must be at least 1, got {args.jobs}")
     for path, what in ((spec, "autograder spec"), (args.submissions, "submissions zip"), (args.gradebook, "gradebook")):
         if not Path(path).is_file():
             parser.error(f"no {what} at {path}" + (": give --spec PATH" if what == "autograder spec" else ""))
