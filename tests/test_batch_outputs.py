@@ -308,7 +308,7 @@ def _canvas_rubric(path: Path) -> dict:
     assert len({row[0] for row in rows}) == 1 and rows[0][0]
     parsed = {}
     for row in rows:
-        assert row[1] and row[3] == "false" and len(row) <= len(header)
+        assert row[1] and row[3] in ("false", "true") and len(row) <= len(header)
         cells = row + [""] * (len(header) - len(row))
         parsed[row[1]] = [
             (cells[n], cells[t], round(float(cells[p].replace(",", ".")), 2))
@@ -327,11 +327,12 @@ def _canvas_rubric_expected(spec: dict) -> dict:
     """What the rubric must hold for Canvas, from the checks alone: per check, full marks at its
     points, each credit a named mistake keeps with every such mistake in that rating's words,
     and no marks at 0, in descending order."""
-    from labsupport.instructor.rubric import mistake_credits
+    from labsupport.instructor.rubric import _module_of, mistake_credits
 
     expected = {}
     for c in spec["checks"]:
-        credits = sorted({credit for credit, _ in mistake_credits(c["name"])} - {0.0}, reverse=True)
+        partial = _module_of(c["name"]).PARTIAL_CREDIT.get(c["name"], [])
+        credits = sorted({credit for credit, _ in [*mistake_credits(c["name"]), *partial]} - {0.0}, reverse=True)
         expected[f"{c['name']}: {c['title']}"] = [c["points"], *(round(k * c["points"], 2) for k in credits), 0.0]
     return expected
 
@@ -349,9 +350,13 @@ def test_the_canvas_rubric_rates_every_named_mistake_at_its_credit(tmp_path):
         parsed = _canvas_rubric(path)
         assert _rating_points(parsed) == _canvas_rubric_expected(spec)
         assert sum(ratings[0][2] for ratings in parsed.values()) == sum(c["points"] for c in spec["checks"])
+        ranged = {row[1]: row[3] for row in list(csv.reader(path.read_text(encoding="utf-8").splitlines()))[1:]}
         for c in spec["checks"]:
             ratings = parsed[f"{c['name']}: {c['title']}"]
-            assert [r[0] for r in ratings][0] == "Full marks" and ratings[-1][0] == "No marks"
+            proportional = c["name"] == "p1_ik"  # a share of 10 solutions: a range in Canvas
+            assert ranged[f"{c['name']}: {c['title']}"] == ("true" if proportional else "false")
+            top = "Share of full marks" if proportional else "Full marks"
+            assert [r[0] for r in ratings][0] == top and ratings[-1][0] == "No marks"
             for credit, text in mistake_credits(c["name"]):  # each mistake, in the rating of its credit
                 rating = next(r for r in ratings if r[2] == round(credit * c["points"], 2))
                 assert text[1:] in rating[1]

@@ -338,6 +338,12 @@ def named_mistakes(check: str, seed: int) -> dict[str, Mistake]:
     return mistakes(terms(arm_model(), state.q, state.qdot), state, q_d, Kp, Kd)
 
 
+#: Checks whose score is a share of their points (any value between none and full marks): the
+#: Canvas rubric gives them a range.
+PROPORTIONAL = frozenset({"p1_ik"})
+#: Partial credit a check gives besides its named mistakes, for the Canvas rubric's ratings.
+PARTIAL_CREDIT: dict[str, list[tuple[float, str]]] = {}
+
 #: How each check scores, for the grading rubric (the named mistakes come from the checks).
 SCORING = {
     "p1_ik": (

@@ -489,6 +489,15 @@ def named_mistakes(check: str, seed: int) -> dict[str, Mistake]:
     return case_of(arm_model(), case)[-1]
 
 
+#: Checks whose score is a share of their points: none here (see problem1.PROPORTIONAL).
+PROPORTIONAL = frozenset()
+#: Partial credit a check gives besides its named mistakes, for the Canvas rubric's ratings; the
+#: same rules as :data:`SCORING` states.
+PARTIAL_CREDIT = {
+    "p2_start": [(0.5, "The start is on the circle's first point but elbow down, or with the pan half a turn round.")],
+    "p2_track": [(0.5, "One of the two controllers keeps its RMS error below the limit, the other does not.")],
+}
+
 #: How each check scores, for the grading rubric (the named mistakes come from the checks).
 SCORING = {
     "p2_start": (

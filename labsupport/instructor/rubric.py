@@ -119,14 +119,18 @@ def canvas_ratings(check: str, points: float) -> list[tuple[str, str, float]]:
     marks down to none: full credit, then each credit a named mistake keeps (the mistakes that
     keep the same credit share one rating), then no credit, with what scores 0 on every check."""
     by_credit: dict[float, list[str]] = {}
-    for credit, text in mistake_credits(check):
+    for credit, text in [*mistake_credits(check), *_module_of(check).PARTIAL_CREDIT.get(check, [])]:
         by_credit.setdefault(credit, []).append(_sentence(text))
     zero = [
         f"Fails the check, as its description says; or the function {_BROKEN}; or it answers the TODO "
         "through labsupport's controllers or kinematics.",
         *by_credit.pop(0.0, []),
     ]
-    ratings = [("Full marks", "Passes the check, as its description says.", float(points))]
+    if check in _module_of(check).PROPORTIONAL:  # a range in Canvas: any share of the points
+        top = ("Share of full marks", "The points times the share the description names (all right: full marks).")
+    else:
+        top = ("Full marks", "Passes the check, as its description says.")
+    ratings = [(*top, float(points))]
     for credit in sorted(by_credit, reverse=True):
         ratings.append((f"{100 * credit:g} % kept", " ".join(by_credit[credit]), credit * points))
     ratings.append(("No marks", " ".join(zero), 0.0))
@@ -140,7 +144,8 @@ def canvas_rubric_csv(spec: dict) -> str:
     rows = []
     for c in spec["checks"]:
         module = _module_of(c["name"])
-        row = [f"{spec['problem']}: grading rubric", f"{c['name']}: {c['title']}", module.SCORING[c["name"]], "false"]
+        ranged = "true" if c["name"] in module.PROPORTIONAL else "false"  # any share of the points
+        row = [f"{spec['problem']}: grading rubric", f"{c['name']}: {c['title']}", module.SCORING[c["name"]], ranged]
         for name, description, points in canvas_ratings(c["name"], c["points"]):
             row += [name, description, f"{round(points, 2):g}"]
         rows.append(row)
