@@ -691,3 +691,42 @@ def test_the_batch_grader_refuses_a_file_that_is_not_a_spec(tmp_path):
     wrong.write_text('{"seed": 1, "date": "today"}')
     with pytest.raises(ValueError, match="is not an autograder spec of this labsupport's checks"):
         run_batch(tmp_path, wrong, tmp_path / "out")
+
+
+def _edited_export(tmp_path: Path, old: str, new: str) -> Path:
+    export = tmp_path / "export.csv"
+    text = EXPORT.read_text(encoding="utf-8")
+    assert old in text
+    export.write_text(text.replace(old, new), encoding="utf-8")
+    return export
+
+
+def test_two_columns_of_one_title_are_told_apart_by_their_ids(tmp_path):
+    """Two columns titled the same made --column report that none matched; and "Problem 10"
+    counted as naming problem1."""
+    header = "Problem 2: Tracking (4102)"
+    gradebook = canvas.read_gradebook(_edited_export(tmp_path, header, "Problem 1: Reaching (4201)"))
+    with pytest.raises(ValueError, match=r"2 assignment columns match --column 'Problem 1: Reaching'.*assignment id"):
+        canvas.choose_column(gradebook, "problem1", "Problem 1: Reaching")
+    assert gradebook.header[canvas.choose_column(gradebook, "problem1", "4201")] == "Problem 1: Reaching (4201)"
+    with pytest.raises(ValueError, match="several assignment columns .* 'Problem 1: Reaching \\(4101\\)'"):
+        canvas.choose_column(gradebook, "problem1")
+    tenth = canvas.read_gradebook(_edited_export(tmp_path, header, "Problem 10: Extra (4110)"))
+    assert tenth.header[canvas.choose_column(tenth, "problem1")] == COLUMN
+
+
+@pytest.mark.parametrize("points", ["0.00", "", "n/a"])
+def test_points_possible_that_cannot_scale_a_score_is_refused(tmp_path, points):
+    """0 points possible wrote every score as 0 (with a note), and a blank cell gave an error that
+    did not say what to do."""
+    export = _edited_export(tmp_path, ",10.00,20.00,20.00,", f",10.00,{points},20.00,")
+    with pytest.raises(ValueError, match="not a positive number: set the assignment's points in Canvas"):
+        canvas.grade_canvas(FIXTURES / "submissions.zip", export, SPEC, tmp_path / "out", grade=fake_grade([]))
+
+
+def test_two_points_possible_rows_are_refused(tmp_path):
+    """A second Points Possible row was read silently, the last one winning."""
+    (line,) = [x for x in EXPORT.read_text(encoding="utf-8").splitlines() if "Points Possible" in x]
+    export = _edited_export(tmp_path, line, line.replace("20.00,20.00", "10.00,20.00") + "\n" + line)
+    with pytest.raises(ValueError, match="both say Points Possible"):
+        canvas.read_gradebook(export)

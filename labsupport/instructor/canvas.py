@@ -431,11 +431,15 @@ class Gradebook:
             return None
         text = self.rows[self.points_row][column].strip()
         try:
-            return float(_decimal_point(text))
+            points = float(_decimal_point(text))
         except ValueError:
+            points = float("nan")
+        if not points > 0:  # blank, text, 0 or negative: every score would be scaled to nothing
             raise ValueError(
-                f"the Points Possible row says {text!r} under {self.header[column]!r}, not a number"
-            ) from None
+                f"the Points Possible row says {text!r} under {self.header[column]!r}, not a positive number: "
+                "set the assignment's points in Canvas and export the gradebook again"
+            )
+        return points
 
 
 def _decimal_point(text: str) -> str:
@@ -515,6 +519,8 @@ def read_gradebook(path: Path) -> Gradebook:
     for r, row in enumerate(rows[1:], start=1):
         first = row[0] if row else ""
         if "Points Possible" in first:
+            if points_row is not None:  # which one would Canvas read? neither guess is safe
+                raise _not_a_gradebook(path, f"rows {points_row + 1} and {r + 1} both say Points Possible")
             points_row = r
         elif all(_POSTING_CELL.match(c) for c in row if c):
             continue  # the Manual Posting row, or a blank line
@@ -546,11 +552,19 @@ def choose_column(gradebook: Gradebook, problem: str, column: str | None = None)
             hits = [i for i in candidates if test(header[i])]
             if len(hits) == 1:
                 return hits[0]
+            if hits:
+                several = "; ".join(repr(header[i]) for i in hits)
+                raise ValueError(
+                    f"{len(hits)} assignment columns match --column {column!r}: {several}; give the one you mean "
+                    "by its assignment id, the number in parentheses"
+                )
         raise ValueError(f"the gradebook has no assignment column {column!r}; its assignment columns are: {listing}")
-    hits = [i for i in candidates if _plain(problem) in _plain(_ASSIGNMENT_HEADER.match(header[i])["title"])]
+    number = re.compile(re.escape(_plain(problem)) + r"(?!\d)")  # problem1, not problem10
+    hits = [i for i in candidates if number.search(_plain(_ASSIGNMENT_HEADER.match(header[i])["title"]))]
     if len(hits) != 1:
         found = "no assignment column" if not hits else "several assignment columns"
-        raise ValueError(f"{found} of the gradebook names {problem!r}: give --column, one of: {listing}")
+        named = listing if not hits else "; ".join(repr(header[i]) for i in hits)
+        raise ValueError(f"{found} of the gradebook names {problem!r}: give --column, one of: {named}")
     return hits[0]
 
 
