@@ -730,3 +730,14 @@ def test_two_points_possible_rows_are_refused(tmp_path):
     export = _edited_export(tmp_path, line, line.replace("20.00,20.00", "10.00,20.00") + "\n" + line)
     with pytest.raises(ValueError, match="both say Points Possible"):
         canvas.read_gradebook(export)
+
+
+def test_a_column_chosen_by_hand_that_does_not_name_the_problem_is_flagged_first(tmp_path):
+    """``--column "Task 1 quiz"`` filled the quiz with Problem 1 scores, with "Notes: none"."""
+    out = tmp_path / "out"
+    canvas.grade_canvas(FIXTURES / "submissions.zip", EXPORT, SPEC, out, column="4100", grade=fake_grade([]))
+    report = (out / "report.txt").read_text(encoding="utf-8").splitlines()
+    assert report[1] == "Column: Task 1 quiz (4100) (points possible 10)"
+    assert report[2].startswith("Check first: the column's title does not name problem1")
+    canvas.grade_canvas(FIXTURES / "submissions.zip", EXPORT, SPEC, out, column="4101", grade=fake_grade([]))
+    assert not any("Check first" in line for line in (out / "report.txt").read_text(encoding="utf-8").splitlines())

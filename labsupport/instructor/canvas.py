@@ -899,6 +899,16 @@ def _write_feedback_zip(out: Path, result: CanvasResult) -> None:
             zf.write(path, path.name)
 
 
+def column_warning(header: str, problem: str) -> str:
+    """A warning when the column chosen (by ``--column``) does not name the Problem, else ""."""
+    if re.search(re.escape(_plain(problem)) + r"(?!\d)", _plain(header)):
+        return ""
+    return (
+        f"Check first: the column's title does not name {problem}; make sure it is this Problem's assignment "
+        "before you import (--column chose it)"
+    )
+
+
 def report_text(gradebook: Gradebook, spec: dict, result: CanvasResult) -> str:
     """The plain-text report: the column written, then each list of what needs a look, the
     grades in Canvas that the import replaces first."""
@@ -909,6 +919,8 @@ def report_text(gradebook: Gradebook, spec: dict, result: CanvasResult) -> str:
         f"Students in the gradebook: {len(gradebook.student_rows)}; scores written: {len(result.scores)}",
         "",
     ]
+    if column_warning(result.column, spec["problem"]):
+        lines[2:2] = [column_warning(result.column, spec["problem"])]
     sections = [
         ("Grades already in Canvas that this import replaces", result.replaced),
         ("Files that match no student of the gradebook (not graded)", result.unmatched),
@@ -965,6 +977,9 @@ def main(argv=None) -> None:
         result = grade_canvas(args.submissions, args.gradebook, spec, args.out, args.column, args.jobs, seed=args.seed)
     except ValueError as err:
         parser.error(str(err))
+    warning = column_warning(result.column, load_spec(spec)["problem"])
+    if warning:
+        print(warning)
     print(
         f"{len(result.scores)} scores written to {args.out / 'gradebook_import.csv'} "
         f"({result.column}); {len(result.unmatched)} unmatched files, {len(result.missing)} students "
