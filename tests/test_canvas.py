@@ -741,3 +741,9 @@ def test_a_column_chosen_by_hand_that_does_not_name_the_problem_is_flagged_first
     assert report[2].startswith("Check first: the column's title does not name problem1")
     canvas.grade_canvas(FIXTURES / "submissions.zip", EXPORT, SPEC, out, column="4101", grade=fake_grade([]))
     assert not any("Check first" in line for line in (out / "report.txt").read_text(encoding="utf-8").splitlines())
+
+
+def test_a_title_of_the_problem_alone_is_not_flagged():
+    """The id in parentheses is not part of the title: "Problem 1 (4101)" names problem1."""
+    assert canvas.column_warning("Problem 1 (4101)", "problem1") == ""
+    assert canvas.column_warning("Problem 10 (4110)", "problem1").startswith("Check first")

@@ -559,8 +559,7 @@ def choose_column(gradebook: Gradebook, problem: str, column: str | None = None)
                     "by its assignment id, the number in parentheses"
                 )
         raise ValueError(f"the gradebook has no assignment column {column!r}; its assignment columns are: {listing}")
-    number = re.compile(re.escape(_plain(problem)) + r"(?!\d)")  # problem1, not problem10
-    hits = [i for i in candidates if number.search(_plain(_ASSIGNMENT_HEADER.match(header[i])["title"]))]
+    hits = [i for i in candidates if names_problem(_ASSIGNMENT_HEADER.match(header[i])["title"], problem)]
     if len(hits) != 1:
         found = "no assignment column" if not hits else "several assignment columns"
         named = listing if not hits else "; ".join(repr(header[i]) for i in hits)
@@ -899,9 +898,16 @@ def _write_feedback_zip(out: Path, result: CanvasResult) -> None:
             zf.write(path, path.name)
 
 
+def names_problem(title: str, problem: str) -> bool:
+    """Whether an assignment's title names ``problem``: ``problem1`` in "Problem 1: Reaching", not
+    in "Problem 10"."""
+    return re.search(re.escape(_plain(problem)) + r"(?!\d)", _plain(title)) is not None
+
+
 def column_warning(header: str, problem: str) -> str:
     """A warning when the column chosen (by ``--column``) does not name the Problem, else ""."""
-    if re.search(re.escape(_plain(problem)) + r"(?!\d)", _plain(header)):
+    match = _ASSIGNMENT_HEADER.match(header)
+    if names_problem(match["title"] if match else header, problem):
         return ""
     return (
         f"Check first: the column's title does not name {problem}; make sure it is this Problem's assignment "
