@@ -628,6 +628,7 @@ class CanvasResult:
     not_scored: list[str] = field(default_factory=list)  #: graded files whose status gave no score
     unreadable: list[str] = field(default_factory=list)  #: files the grader could not read (scored 0), and why
     notes: list[str] = field(default_factory=list)
+    warning: str = ""  #: what to check before importing (a column that does not name the Problem)
 
 
 GradeFn = Callable[[Path, Path, Path], list[dict]]
@@ -660,6 +661,7 @@ def grade_canvas(
         column=gradebook.header[col],
         points_possible=gradebook.points_possible(col),
         maximum=sum(float(c["points"]) for c in spec["checks"]),
+        warning=column_warning(gradebook.header[col], spec["problem"]),
     )
     if result.points_possible is None:
         result.notes.append("the export has no Points Possible row: scores are written unscaled")
@@ -709,14 +711,13 @@ def _select_submissions(
     with zf:
         entries = safe_zip_entries(zf)
     by_user: dict[int, list[SubmissionFile]] = {}
-    skipped = [info.filename for info in entries if is_os_metadata(info.filename)]
-    if skipped:
+    kept = [info for info in entries if not is_os_metadata(info.filename)]
+    if len(kept) < len(entries):
         result.notes.append(
-            f"{len(skipped)} files the operating system added to the zip (__MACOSX/, ._ copies, .DS_Store) skipped"
+            f"{len(entries) - len(kept)} files the operating system added to the zip (__MACOSX/, ._ copies, "
+            ".DS_Store) skipped"
         )
-    for info in entries:
-        if is_os_metadata(info.filename):
-            continue
+    for info in kept:
         f = parse_submission_name(info.filename)
         if f is None:
             result.unmatched.append(f"{info.filename}: not named as Canvas names submissions")
@@ -925,8 +926,8 @@ def report_text(gradebook: Gradebook, spec: dict, result: CanvasResult) -> str:
         f"Students in the gradebook: {len(gradebook.student_rows)}; scores written: {len(result.scores)}",
         "",
     ]
-    if column_warning(result.column, spec["problem"]):
-        lines[2:2] = [column_warning(result.column, spec["problem"])]
+    if result.warning:
+        lines[2:2] = [result.warning]
     sections = [
         ("Grades already in Canvas that this import replaces", result.replaced),
         ("Files that match no student of the gradebook (not graded)", result.unmatched),
@@ -983,9 +984,8 @@ def main(argv=None) -> None:
         result = grade_canvas(args.submissions, args.gradebook, spec, args.out, args.column, args.jobs, seed=args.seed)
     except ValueError as err:
         parser.error(str(err))
-    warning = column_warning(result.column, load_spec(spec)["problem"])
-    if warning:
-        print(warning)
+    if result.warning:
+        print(result.warning)
     print(
         f"{len(result.scores)} scores written to {args.out / 'gradebook_import.csv'} "
         f"({result.column}); {len(result.unmatched)} unmatched files, {len(result.missing)} students "
