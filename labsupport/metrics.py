@@ -208,22 +208,14 @@ def rotation_error(xmat, quat_d, out=None, work=None) -> np.ndarray:
     return out
 
 
-def _log(log):
-    """``log`` if it has the arrays of a :class:`labsupport.sim.Log`, else a ``ValueError`` that
-    says what to pass."""
-    if not all(hasattr(log, name) for name in ("t", "tau", "err", "ee_rot")):
-        raise ValueError(f"log must be the Log that labsupport.sim.simulate returns, got {type(log).__name__}")
-    return log
-
-
 def _after(log, after: float) -> np.ndarray:
-    """Rows of ``log`` (already checked by :func:`_log`) logged at ``t >= after``."""
+    """Rows of ``log`` (already checked by :func:`labsupport.validate.run_log`) logged at ``t >= after``."""
     return log.t >= validate.number("after", after)
 
 
 def rms_position_error(log, after: float = 0.0) -> float:
     r"""RMS of the site's position error norm over ``t >= after`` [m], from ``log.err``."""
-    if _log(log).err.shape[1] == 0:
+    if validate.run_log(log).err.shape[1] == 0:
         raise ValueError("the log has no position error: pass site= and reference= to simulate to record one")
     return rms_norm(log.err[_after(log, after)])
 
@@ -231,9 +223,9 @@ def rms_position_error(log, after: float = 0.0) -> float:
 def orientation_error(log, quat_d) -> np.ndarray:
     r"""(N, 3) rotation errors :math:`\log(R_k R_d^\top)` of the logged site orientations
     ``log.ee_rot`` against the constant target orientation ``quat_d`` (w, x, y, z) [rad]."""
-    if _log(log).ee_rot.shape[1:] != (3, 3):
+    if validate.run_log(log).ee_rot.shape[1:] != (3, 3):
         raise ValueError("the log has no site orientation: pass site= to simulate to record one")
-    return np.array([rotation_error(rot, quat_d) for rot in _log(log).ee_rot]).reshape(len(log.t), 3)
+    return np.array([rotation_error(rot, quat_d) for rot in validate.run_log(log).ee_rot]).reshape(len(log.t), 3)
 
 
 def rms_orientation_error(log, quat_d, after: float = 0.0) -> float:
@@ -245,7 +237,7 @@ def peak_torque(log, applied=None) -> np.ndarray:
     r"""Largest :math:`|\tau|` of each actuator over the run: of the asked torque ``log.tau``,
     or of ``applied`` (N, nu), the torque the actuators actually exerted, when given."""
     if applied is None:
-        return np.abs(_log(log).tau).max(axis=0)
+        return np.abs(validate.run_log(log).tau).max(axis=0)
     return np.abs(_applied(log, applied)).max(axis=0)
 
 
@@ -260,7 +252,7 @@ def _applied(log, applied) -> np.ndarray:
     """``applied`` as an array shaped like ``log.tau`` (one exerted torque per step and
     actuator), or a ``ValueError``."""
     applied = np.asarray(applied, dtype=float)
-    if applied.shape != _log(log).tau.shape:
+    if applied.shape != validate.run_log(log).tau.shape:
         raise ValueError(
             f"applied must hold one exerted torque per step and actuator, shape {log.tau.shape} as log.tau, "
             f"got shape {applied.shape}"

@@ -186,8 +186,7 @@ def render_run(
             positive number, or a video of more than :data:`labsupport.plots.MAX_FRAMES` frames.
     """
     validate.mujoco_model(model)
-    if not all(hasattr(log, name) for name in ("t", "q", "ref", "site")):
-        raise ValueError(f"log must be the Log that labsupport.sim.simulate returns, got {validate.short(log)}")
+    validate.run_log(log)
     if not 0 < validate.number("fps", fps) <= 60:
         raise ValueError(f"fps must be in (0, 60], got {fps!r}")
     trace_step = validate.number("trace_step", trace_step, positive=True)

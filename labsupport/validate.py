@@ -85,6 +85,18 @@ def _not_text(name: str, value) -> None:
         raise ValueError(f"{name} must be numbers, not text: got {short(value)}")
 
 
+#: The arrays of a run's log (``labsupport.sim.Log``), which functions of a log read.
+LOG_FIELDS = ("t", "q", "qdot", "tau", "ctrl", "ee", "ee_rot", "ref", "err", "site")
+
+
+def run_log(log):
+    """``log`` if it has the arrays of a ``labsupport.sim.Log``, else a ``ValueError`` that says
+    what to pass."""
+    if not all(hasattr(log, name) for name in LOG_FIELDS):
+        raise ValueError(f"log must be the Log that labsupport.sim.simulate returns, got {type(log).__name__}")
+    return log
+
+
 def mujoco_model(model) -> None:
     """``ValueError`` unless ``model`` is a ``mujoco.MjModel``; a ``mujoco.MjData`` in its place
     is named as model and data swapped."""
