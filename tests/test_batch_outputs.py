@@ -96,10 +96,17 @@ def test_every_notebook_gets_a_row_whatever_the_case_of_its_extension(tmp_path, 
     notebooks = {"a.ipynb": b"not json", "a.IPYNB": b"not json either", "B.Ipynb": b"{"}
     subs = _folder(tmp_path / "subs", {**notebooks, "notes.py": b"x = 1", "report.pdf": b"%PDF"})
     (subs / "old").mkdir()
+    (subs / "odd.ipynb").mkdir()  # a folder so named: left aside as a folder, not an "unreadable" row
     _folder(subs / "late", {"c.ipynb": b"{}", "d.ipynb": b"{}", "readme.txt": b""})
     rows = batch.run_batch(subs, SPEC, tmp_path / "out", jobs=1, unsafe_no_sandbox=True)
     assert {r["file"] for r in rows} == set(_rows(tmp_path / "out")) == set(notebooks)
-    aside = ["late/ (holds 2 notebooks: grade that folder, or move them up)", "notes.py", "old/", "report.pdf"]
+    aside = [
+        "late/ (holds 2 notebooks: grade that folder, or move them up)",
+        "notes.py",
+        "odd.ipynb/",
+        "old/",
+        "report.pdf",
+    ]
     assert "not graded (not .ipynb files): " + ", ".join(aside) in capsys.readouterr().err
     assert json.loads((tmp_path / "out" / "batch.json").read_text(encoding="utf-8"))["left_aside"] == aside
     # a.ipynb and a.IPYNB share a stem: each keeps a feedback file of its own
@@ -108,6 +115,12 @@ def test_every_notebook_gets_a_row_whatever_the_case_of_its_extension(tmp_path, 
         "B.txt": "Feedback on B.Ipynb (problem1)",
         "a.txt": "Feedback on a.IPYNB (problem1)",
         "a-2.txt": "Feedback on a.ipynb (problem1)",
+    }
+    # a line break or a control character in a file name does not reach the feedback file's name
+    assert batch.feedback_names(["two\nlines.ipynb", "bell\x07.ipynb", "two lines.ipynb"]) == {
+        "two\nlines.ipynb": "two_lines.txt",
+        "bell\x07.ipynb": "bell_.txt",
+        "two lines.ipynb": "two lines.txt",
     }
     # a folder holding only an upper-case notebook is graded, not refused as holding none
     upper = _folder(tmp_path / "upper", {"only.IPYNB": b"not json"})

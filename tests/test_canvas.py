@@ -424,6 +424,29 @@ def test_a_regrade_into_the_same_folder_leaves_no_stale_feedback(tmp_path):
         assert zf.namelist() == ["smithbob_1234_50011_feedback.txt"]
 
 
+def test_a_regrade_keeps_the_earlier_import_and_retires_the_earlier_batch(tmp_path):
+    """A regrade used to overwrite the earlier import and report, and a regrade of a zip with no
+    notebook left the earlier batch's grades.csv and feedback beside the new, empty import."""
+    out = tmp_path / "out"
+    canvas.grade_canvas(FIXTURES / "submissions.zip", EXPORT, SPEC, out, grade=fake_grade([]))
+    first = {name: (out / name).read_bytes() for name in canvas.CANVAS_RESULTS}
+    batch = out / "batch"  # what the real batch grader writes there (the fake one writes nothing)
+    (batch / "feedback").mkdir(parents=True)
+    (batch / "grades.csv").write_text("file,total\nsmithbob_1234.ipynb,20\n", encoding="utf-8")
+    (batch / "batch.json").write_text('{"seed": 7}', encoding="utf-8")
+    (batch / "feedback" / "smithbob_1234.txt").write_text(canvas.FEEDBACK_HEADER + "Bob", encoding="utf-8")
+    only_text = build_zip(tmp_path / "text.zip", {"smithbob_1234_text.html": b"<p>no notebook</p>"})
+    result = canvas.grade_canvas(only_text, EXPORT, SPEC, out, grade=fake_grade([]))
+    assert result.scores == {}
+    for name, earlier in first.items():
+        assert (out / "previous" / name).read_bytes() == earlier, name
+    assert (out / "gradebook_import.csv").read_bytes() != first["gradebook_import.csv"]
+    assert not (batch / "grades.csv").exists() and not (batch / "batch.json").exists()
+    assert (batch / "previous" / "grades.csv").read_text(encoding="utf-8").endswith("smithbob_1234.ipynb,20\n")
+    assert json.loads((batch / "previous" / "batch.json").read_text(encoding="utf-8")) == {"seed": 7}
+    assert list((batch / "feedback").iterdir()) == []
+
+
 def test_semicolons_bom_crlf_and_decimal_commas_survive(tmp_path):
     text = EXPORT.read_text(encoding="utf-8")
     rows = list(csv.reader(io.StringIO(text)))

@@ -67,9 +67,11 @@ from labsupport.grading import registry
 from labsupport.instructor import isolation, judge
 from labsupport.instructor.assign import SPECS, load_spec
 from labsupport.instructor.canvas import (
+    BATCH_RESULTS,
     FEEDBACK_HEADER,
     STRIP_OUTPUTS_BYTES,
     clean_text,
+    keep_previous,
     keep_private,
     remove_stale_feedback,
     seed_argument,
@@ -92,8 +94,9 @@ def new_seed() -> int:
 
 
 def is_notebook(path: Path) -> bool:
-    """Whether ``path`` is named as a notebook: ``.ipynb`` in any case (``.IPYNB`` too)."""
-    return path.name.lower().endswith(".ipynb")
+    """Whether ``path`` is a file named as a notebook: ``.ipynb`` in any case (``.IPYNB`` too); a
+    folder so named is not one (it is left aside as a folder)."""
+    return path.name.lower().endswith(".ipynb") and path.is_file()
 
 
 def list_notebooks(folder: Path) -> list[Path]:
@@ -307,11 +310,13 @@ def grades_csv(spec: dict, rows: list[dict], seed: int) -> str:
 
 
 def feedback_names(files: list[str]) -> dict[str, str]:
-    """Each submission's feedback file name, ``<stem>.txt``; a stem already taken in any case
-    (``a.ipynb`` and ``a.IPYNB``) gets ``<stem>-2.txt``, and so on: no feedback overwrites another."""
+    """Each submission's feedback file name, ``<stem>.txt``, with ``_`` for any character that
+    :func:`~labsupport.instructor.canvas.clean_text` would not write as it is (a line break, a
+    control character); a stem already taken in any case (``a.ipynb`` and ``a.IPYNB``) gets
+    ``<stem>-2.txt``, and so on: no feedback overwrites another."""
     names, taken = {}, set()
     for file in files:
-        stem = Path(file).stem
+        stem = "".join(c if clean_text(c) == c else "_" for c in Path(file).stem)
         name, k = f"{stem}.txt", 2
         while name.casefold() in taken:
             name, k = f"{stem}-{k}.txt", k + 1
@@ -328,7 +333,7 @@ def _write_results(out: Path, spec: dict, rows: list[dict], record: dict) -> Non
     An earlier batch's ``grades.csv`` and ``batch.json`` (its seed) move to ``out/previous/``
     first, replacing what an even earlier one left there."""
     out = Path(out)
-    _keep_previous(out)
+    keep_previous(out, BATCH_RESULTS)
     _atomic_write(out / "grades.csv", grades_csv(spec, rows, record["seed"]))
     names = feedback_names([row["file"] for row in rows])
     for row in rows:
@@ -337,18 +342,6 @@ def _write_results(out: Path, spec: dict, rows: list[dict], record: dict) -> Non
     _atomic_write(out / "rubric.md", rubric(spec))
     _atomic_write(out / "rubric_canvas.csv", canvas_rubric_csv(spec))
     remove_stale_feedback(out / "feedback", set(names.values()))
-
-
-def _keep_previous(out: Path) -> None:
-    """Move ``grades.csv`` and ``batch.json`` of an earlier batch into ``out/previous/``."""
-    earlier = [out / name for name in ("grades.csv", "batch.json") if (out / name).is_file()]
-    if not earlier:
-        return
-    previous = out / "previous"
-    previous.mkdir(exist_ok=True)
-    for path in earlier:
-        os.replace(path, previous / path.name)
-    print(f"the earlier batch's {' and '.join(p.name for p in earlier)} are now in {previous}")
 
 
 def _atomic_write(path: Path, text: str) -> None:

@@ -20,6 +20,10 @@ Gradebook's *Export* gives, grades each student's notebook with
 * ``OUT/batch/``: the batch grader's own ``grades.csv`` and feedback, and the Problem's rubric
   (``rubric.md``, and ``rubric_canvas.csv`` for the course's *Rubrics → Import Rubric*).
 
+A regrade into the same ``OUT`` first moves the earlier run's import, report and zip into
+``OUT/previous/``, and the earlier batch's results into ``OUT/batch/previous/``
+(:func:`keep_previous`).
+
 What Canvas produces, and where each fact comes from
 ----------------------------------------------------
 
@@ -195,6 +199,26 @@ def remove_stale_feedback(folder: Path, keep: set[str]) -> None:
                 path.unlink()
         except OSError:  # not this grader's to remove
             continue
+
+
+#: The files a batch writes that a regrade into the same folder moves into ``previous/``.
+BATCH_RESULTS = ("grades.csv", "batch.json")
+#: The same for a Canvas run: the import, the report and the feedback zip.
+CANVAS_RESULTS = ("gradebook_import.csv", "report.txt", "feedback_upload.zip")
+
+
+def keep_previous(folder: Path, names: tuple[str, ...]) -> None:
+    """Move the files ``names`` that an earlier run wrote in ``folder`` into ``folder/previous/``,
+    replacing what an even earlier run left there: a regrade into the same folder loses nothing,
+    and leaves nothing of the earlier run beside its own results."""
+    earlier = [folder / name for name in names if (folder / name).is_file()]
+    if not earlier:
+        return
+    previous = folder / "previous"
+    previous.mkdir(exist_ok=True)
+    for path in earlier:
+        os.replace(path, previous / path.name)
+    print(f"the earlier run's {', '.join(p.name for p in earlier)} are now in {previous}")
 
 
 def keep_private() -> None:
@@ -678,6 +702,7 @@ def grade_canvas(
         raise ValueError(
             f"cannot write the output folder {out} ({err.strerror}): give --out a folder you can write to"
         ) from None
+    keep_previous(out, CANVAS_RESULTS)
     rows = _grade(Path(submissions_zip), chosen, spec_path, out, result, grade or _run_batch(jobs, seed))
     _record_scores(gradebook, col, spec, chosen, rows, out, result)
     remove_stale_feedback(out / "feedback", {path.name for path in result.feedback.values()})
@@ -785,8 +810,11 @@ def _zip_name(sortable_name: str) -> str:
 def _grade(
     zip_path: Path, chosen: dict[int, SubmissionFile], spec_path: Path, out: Path, result: CanvasResult, grade: GradeFn
 ) -> dict[int, dict]:
-    """Unpack the chosen notebooks into a private folder, grade them, and key the rows by user id."""
+    """Unpack the chosen notebooks into a private folder, grade them, and key the rows by user id.
+    With none to grade, an earlier batch's results in ``OUT/batch`` are moved into its
+    ``previous/`` and its feedback removed, so that none of it stands beside this run's import."""
     if not chosen:
+        _retire_batch(out / "batch")
         return {}
     folder = Path(tempfile.mkdtemp(prefix="canvas-submissions-"))  # mode 0700: private
     try:
@@ -809,7 +837,11 @@ def _grade(
                 name = f"{f.name or 'student'}_{user}.ipynb"
                 (folder / name).write_bytes(data)
                 files[name] = user
-        rows = grade(folder, spec_path, out / "batch") if files else []
+        if files:
+            rows = grade(folder, spec_path, out / "batch")
+        else:
+            rows = []
+            _retire_batch(out / "batch")
     finally:
         shutil.rmtree(folder, ignore_errors=True)
     by_user = {}
@@ -823,6 +855,15 @@ def _grade(
         if user not in by_user:
             result.not_scored.append(f"{chosen[user].entry}: the grader returned no row for it; left out of the import")
     return by_user
+
+
+def _retire_batch(folder: Path) -> None:
+    """Move an earlier batch's results in ``folder`` into ``folder/previous/`` and remove its
+    feedback files (a run with nothing to grade writes no batch of its own)."""
+    if folder.is_dir():
+        keep_previous(folder, BATCH_RESULTS)
+        if (folder / "feedback").is_dir():
+            remove_stale_feedback(folder / "feedback", set())
 
 
 def _record_scores(
