@@ -105,7 +105,8 @@ class Log:
         t: (N,) time at which the state was recorded [s] (the step's end with
             ``log_after_step``, its start otherwise).
         q, qdot: (N, nq), (N, nv) state at that time.
-        tau: (N, nu) torque the controller asked for over the step (after ``torque_limit``).
+        tau: (N, nu) torque the controller asked for over the step (after ``torque_limit``, and
+            a limited ``ctrlrange`` of a torque actuator).
         ctrl: (N, nu) what was written to ``data.ctrl`` (equal to ``tau`` without an actuation
             mapping).
         ee: (N, 3) end-effector site position, or (N, 0) without a site.
@@ -194,13 +195,18 @@ def simulate(
         reference: ``reference(t)`` returning a :class:`~labsupport.trajectories.Reference`, whose
             ``pos`` is the desired site position, recorded with the error (vectorised over an
             array of times if possible; it is evaluated after the run).
-        torque_limit: scalar or ``(nu,)`` symmetric limit; torques are clipped to it.
+        torque_limit: scalar or ``(nu,)`` symmetric limit; torques are clipped to it. Without an
+            ``actuation`` mapping they are also clipped to the actuators' limited ``ctrlrange``
+            (MuJoCo would clamp them there silently), so the log holds the torque that acted; a
+            ``RuntimeWarning`` after the run says where that range bound.
         log_after_step: record the state *after* the step beside the reference and torque of
             the step's start, as the lab's loops do (the reference then leads the state by one
             step). The default records state, reference and torque of the same instant.
         keyframe: name of a keyframe of the model to reset to.
         actuation: ``actuation(model, data, tau) -> ctrl`` (shape ``(nu,)``) turning the
-            controller's torque into ``data.ctrl``; by default ``ctrl = tau``.
+            controller's torque into ``data.ctrl``; by default ``ctrl = tau``, which a model whose
+            actuators are servos (the UR5e) refuses: give it
+            :func:`labsupport.actuators.servo_actuation`.
         split_step: ``mj_step1``, controller, ``mj_step2``, so the controller sees the current
             state's kinematics and dynamics (Euler and implicit integrators only).
         lab_timing: step as the lab's UR5e loop (see the module's description).
@@ -236,6 +242,8 @@ def simulate(
         raise ValueError(
             f"actuation must be a function actuation(model, data, tau) -> ctrl, got {validate.short(actuation)}"
         )
+    if actuation is None:
+        _check_torque_actuators(model)
     dt = model.opt.timestep
     nsteps = step_count(duration, dt, lab_timing)  # checks the duration
     if nsteps <= 0:
@@ -260,7 +268,9 @@ def simulate(
             limit = validate.vector(f"torque_limit (a number, or one per actuator: nu = {nu})", torque_limit, nu).copy()
         if not np.all(limit > 0):
             raise ValueError(f"torque_limit must be positive, got {torque_limit!r}")
-    neg_limit = None if limit is None else -limit
+    lower, upper = (None, None) if limit is None else (-limit, limit)
+    if actuation is None:  # MuJoCo clamps ctrl to a limited ctrlrange: clip here, so the log holds what acts
+        lower, upper = _within_ctrlrange(model, lower, upper)
     clipped = np.empty(nu)
 
     # One row per step: time, qpos, qvel and ctrl, copied in one mj_getState call.
@@ -286,12 +296,12 @@ def simulate(
                 step1(model, data)
             try:
                 tau = controller(model, data)
-            except (ValueError, TypeError, np.linalg.LinAlgError) as err:  # not a ValueError in NumPy 1
+            except _CONTROLLER_ERRORS as err:
                 raise _controller_failed(err, model, data) from err
             if type(tau) is not np.ndarray or tau.shape != (nu,) or tau.dtype != np.float64:
                 tau = _as_torque(tau, nu)
-            if limit is not None:
-                tau = np.clip(tau, neg_limit, limit, out=clipped)
+            if lower is not None:
+                tau = np.clip(tau, lower, upper, out=clipped)
             if actuation is None:
                 ctrl[:] = tau
             else:
@@ -326,6 +336,8 @@ def simulate(
         t = t_ctrl = state[:, 0].copy()
     q, qdot, ctrl_log = q.copy(), qdot.copy(), ctrl_log.copy()
     tau_log = ctrl_log.copy() if actuation is None else tau_log
+    if actuation is None:
+        _warn_ctrlrange_bound(model, t_ctrl, tau_log, limit)
     _check_runaway(t, q, qdot)
     if log_after_step and with_site:
         ee, ee_rot = site_poses(model, q, site_id)
@@ -345,10 +357,24 @@ def simulate(
     return Log(t, q, qdot, tau_log, ctrl_log, ee, ee_rot, ref, err, site_id)
 
 
+#: The errors of a controller that the loop says again with the time they happened at
+#: (``LinAlgError`` is not a ``ValueError`` in NumPy 1).
+_CONTROLLER_ERRORS = (
+    ValueError,
+    TypeError,
+    np.linalg.LinAlgError,
+    IndexError,
+    KeyError,
+    AttributeError,
+    ArithmeticError,
+)
+
+
 def _controller_failed(err: Exception, model: mujoco.MjModel, data: mujoco.MjData) -> Exception:
-    """The controller's ``ValueError`` or ``TypeError`` (say, ``None - 1.0`` from a reference not
-    set) again, with the time it happened at; for a shape mismatch (a NumPy broadcast error from
-    inside a law) also the sizes the model's state has."""
+    """The controller's error (say, ``None - 1.0`` from a reference not set, or an index past
+    ``data.qpos``) again, as a ``TypeError`` if it was one and a ``ValueError`` otherwise, with the
+    time it happened at; for a shape mismatch (a NumPy broadcast error from inside a law) or an
+    index out of range also the sizes the model's state has."""
     kind = TypeError if isinstance(err, TypeError) else ValueError
     message = f"the controller raised {type(err).__name__} at t = {data.time:.4f} s: {str(err).rstrip()}"
     if isinstance(err, np.linalg.LinAlgError):
@@ -357,12 +383,63 @@ def _controller_failed(err: Exception, model: mujoco.MjModel, data: mujoco.MjDat
             "out or folded (keep the target inside the workspace, away from its edge), or the mass matrix of data "
             "that has not been through mj_forward"
         )
-    if "shape" in message:
+    if "shape" in message or isinstance(err, IndexError):
         message += (
             f". The model's state has nq = {model.nq}, nv = {model.nv} and nu = {model.nu}: check that "
             "the references and gains given to the law have these sizes"
         )
     return kind(message)
+
+
+def _check_torque_actuators(model: mujoco.MjModel) -> None:
+    """``ValueError`` when the model's actuators are servos (a bias term: ``ctrl`` is their target
+    position or velocity, not a torque) and no actuation mapping turns torques into targets."""
+    servos = np.flatnonzero(model.actuator_biastype != mujoco.mjtBias.mjBIAS_NONE)
+    if servos.size:
+        name = model.actuator(int(servos[0])).name or f"actuator {servos[0]}"
+        raise ValueError(
+            f"{servos.size} of the model's {model.nu} actuators ({name}, ...) are servos: data.ctrl is their "
+            "target, not a torque. For a controller that returns torques pass "
+            "actuation=labsupport.actuators.servo_actuation(model); for one that returns the servos' targets, "
+            "actuation=lambda model, data, target: target"
+        )
+
+
+def _within_ctrlrange(model: mujoco.MjModel, lower, upper):
+    """The torque bounds ``(lower, upper)`` narrowed to the limited ``ctrlrange`` of the
+    actuators (``(None, None)`` when neither bounds anything)."""
+    limited = model.actuator_ctrllimited.astype(bool)
+    if not limited.any():
+        return lower, upper
+    lo = np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf)
+    hi = np.where(limited, model.actuator_ctrlrange[:, 1], np.inf)
+    if lower is None:
+        return lo, hi
+    return np.maximum(lower, lo), np.minimum(upper, hi)
+
+
+def _warn_ctrlrange_bound(model: mujoco.MjModel, t: np.ndarray, tau: np.ndarray, limit) -> None:
+    """A ``RuntimeWarning`` when the actuators' ``ctrlrange`` (not ``torque_limit``) bound the
+    torque: the controller asked for more than the motors give."""
+    limited = model.actuator_ctrllimited.astype(bool)
+    if not limited.any() or not len(tau):
+        return
+    lo, hi = model.actuator_ctrlrange.T
+    if limit is not None:  # where torque_limit is the tighter bound, it is the run's own limit
+        limited &= (lo > -limit) | (hi < limit)
+    bound = limited & ((tau == lo) | (tau == hi))
+    if bound.any():
+        steps = bound.any(axis=1)
+        names = [model.actuator(i).name or str(i) for i in np.flatnonzero(bound.any(axis=0))]
+        warnings.warn(
+            f"the actuators' ctrlrange bound the torque on {steps.sum()} of {len(tau)} steps, first at t = "
+            f"{t[np.argmax(steps)]:.4f} s (actuators {', '.join(names)}; ctrlrange "
+            f"{', '.join(f'[{lo[i]:g}, {hi[i]:g}]' for i in np.flatnonzero(bound.any(axis=0)))}): the log holds "
+            "the torque applied, not the one asked for. Ask for less (smaller gains or a gentler reference), or "
+            "pass torque_limit= to make the limit part of the design",
+            RuntimeWarning,
+            stacklevel=3,
+        )
 
 
 def _as_torque(tau, nu: int) -> np.ndarray:
@@ -500,8 +577,9 @@ def _check_reference(reference, span: tuple[float, float], site_dims: int) -> No
     d = np.size(trajectories.evaluate(reference, first).pos)
     if d > site_dims:
         raise ValueError(
-            f"the reference has {d} components; a site position has {site_dims} "
-            "(pass site= to compare the reference with a site)"
+            f"the reference has {d} components; a site position has {site_dims}: reference= is compared with "
+            "a site's position (pass site= to name it); the error of a joint-space reference is "
+            "reference(log.t).pos - log.q, computed after the run"
         )
     try:
         trajectories.evaluate(reference, last)

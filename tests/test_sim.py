@@ -617,6 +617,54 @@ def test_a_controller_failing_or_returning_text_is_named_with_the_time(arm):
             sim.simulate(model, data, lambda m, d, r=returned: r, 0.1)
 
 
+@pytest.mark.parametrize(
+    ("law", "kind", "words"),
+    [
+        (lambda m, d: d.qpos[1], ValueError, r"raised IndexError at t = 0\.0000 s: .*nq = 1, nv = 1 and nu = 1"),
+        (lambda m, d: {"kp": 1.0}["Kp"], ValueError, r"raised KeyError at t = 0\.0000 s: 'Kp'"),
+        (lambda m, d: d.qpos.kp, ValueError, r"raised AttributeError at t = 0\.0000 s: .*kp"),
+        (lambda m, d: 1 / 0, ValueError, r"raised ZeroDivisionError at t = 0\.0000 s"),
+    ],
+)
+def test_any_usual_error_of_a_controller_is_passed_on_with_its_time(law, kind, words):
+    """IndexError, KeyError, AttributeError and ZeroDivisionError used to come out bare, with no
+    time and, for an index past the state, no sizes."""
+    model, data = load_model("single_joint")
+    with pytest.raises(kind, match=words):
+        sim.simulate(model, data, law, 0.1)
+
+
+def test_the_ctrlrange_that_mujoco_clamps_to_is_the_torque_in_the_log():
+    """The single joint's motor stops at 20 N·m. MuJoCo clamps ctrl there silently, so the log used
+    to show the 200 N·m asked for, while the run was the same as one with torque_limit=20."""
+    model, data = load_model("single_joint")
+    stiff = lambda m, d: 200.0 * (1.0 - d.qpos) - 20.0 * d.qvel + d.qfrc_bias  # noqa: E731
+    with pytest.warns(RuntimeWarning, match=r"ctrlrange bound the torque on \d+ of 500 steps, first at t = 0\.0000 s"):
+        log = sim.simulate(model, data, stiff, 0.5)
+    limited = sim.simulate(model, data, stiff, 0.5, torque_limit=20.0)
+    assert log.tau.max() == 20.0 and np.abs(log.tau).max() == 20.0
+    np.testing.assert_array_equal(log.tau, limited.tau)
+    np.testing.assert_array_equal(log.q, limited.q)  # the torque logged is the torque that acted
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a tighter torque_limit is the run's own: no warning
+        sim.simulate(model, data, stiff, 0.5, torque_limit=5.0)
+        sim.simulate(model, data, lambda m, d: d.qfrc_bias, 0.5)  # within the range: no warning
+
+
+def test_a_servo_model_without_an_actuation_mapping_is_refused():
+    """The UR5e's servos read ctrl as target angles: torques written there used to run without a
+    word, 93 mm off the target."""
+    from labsupport import actuators, ur5e
+
+    model, data = ur5e.load_ur5e()
+    with pytest.raises(ValueError, match=r"6 of the model's 6 actuators .* are servos: .*servo_actuation\(model\)"):
+        sim.simulate(model, data, lambda m, d: d.qfrc_bias, 0.01, keyframe=ur5e.HOME)
+    held = sim.simulate(
+        model, data, lambda m, d: d.qfrc_bias, 0.01, keyframe=ur5e.HOME, actuation=actuators.servo_actuation(model)
+    )
+    assert held.q.shape == (5, 6)
+
+
 def test_site_positions_of_one_configuration_and_bad_configurations():
     """One configuration (nq,) was read as nq configurations of one joint each: the 2R's
     q = (0.1, 0.2) gave two rows, for (0.1, 0.1) and (0.2, 0.2)."""
