@@ -702,12 +702,25 @@ def test_the_tracking_limit_parts_right_laws_from_known_mistakes_on_every_circle
             assert err < 0.6 * problem2.RMS_TOL if right else err > 1.5 * problem2.RMS_TOL, (seed, law.__name__, err)
 
 
-def test_a_poor_jdot_approximation_keeps_more_than_leaving_it_out():
+def test_a_poor_jdot_approximation_keeps_half_and_two_mistakes_no_more_than_one():
+    """A poor J̇q̇ keeps what leaving it out keeps. Its credit used to grow as the error shrank
+    (1 − ε/2), which one state cannot tell from an error in another velocity term: the Coriolis
+    part of h missing as well as J̇q̇ scored 63 %, more than either mistake alone (50 %)."""
+
     def rough(model, data, x_d, xd_d, xdd_d, Kp, Kd):
         return os_law(model, data, x_d, xd_d, xdd_d, Kp, Kd, 0.7 * site_jdot_qdot(model, data, SITE)[:3])
 
+    def gravity_only_and_no_jdot(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        moving = os_law(model, data, x_d, xd_d, xdd_d, Kp, Kd, np.zeros(3))
+        coriolis = data.qfrc_bias - common.terms(model, data.qpos, np.zeros(3)).h  # h less gravity
+        return moving - coriolis
+
     result = grade("p2_osct", ct_op_torque=rough)
-    assert 0.5 < result.score < 1 and "off by 30 %" in result.message, result
+    assert result.score == 0.5 and "off by 30 %" in result.message, result
+    assert "Coriolis part of h" in result.message
+    for seed in range(4):
+        both = grade("p2_osct", seed=seed, ct_op_torque=gravity_only_and_no_jdot)
+        assert both.score <= 0.5, (seed, both)
 
 
 # --- forbidden calls into labsupport: zero, with the reason ---------------------------------------

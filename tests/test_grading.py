@@ -441,6 +441,9 @@ def test_the_sandbox_sees_no_checkout_and_no_forbidden_module(tmp_path):
         "try:\n    c.joint_space.ct_joint_torque()\nexcept RuntimeError as e:\n    print(e)\n"
         "import socket\ntry:\n    socket.create_connection(('1.1.1.1', 53), timeout=2)\n"
         "except OSError as e:\n    print('no network', e.errno)\n"
+        # a star import used to define nothing (NameError at the call, not the rule's reason)
+        "from labsupport.controllers.joint_space import *\n"
+        "try:\n    ct_joint_torque()\nexcept RuntimeError as e:\n    print(e)\n"
     )
     proc = subprocess.run(
         isolation.command(layout, [layout.python, "-c", probe]), capture_output=True, text=True, timeout=60
@@ -454,6 +457,7 @@ def test_the_sandbox_sees_no_checkout_and_no_forbidden_module(tmp_path):
     assert lines[1] == "False False"
     assert "is off limits in a Problem TODO" in lines[2]
     assert lines[3].startswith("no network")
+    assert "labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO" in lines[4]
 
 
 def test_masters_get_full_marks_on_problem2(tmp_path):

@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from labsupport.grading.common import (
+    GRAVITY_ONLY,
     INVERSE_MASS,
     Mistake,
     arm_model,
@@ -172,12 +173,14 @@ def _unreachable_note(probe: Probe) -> str:
 
 
 def _joint_law_cases(seed: int, check: str, gains, n: int = 4):
-    """Seeded states (either elbow branch, random velocities), set points and gains."""
-    rng = rng_for(seed, check)
+    """Seeded states (either elbow branch, random velocities), set points and gains. The first
+    state is at t = 0, as a run starts; the others at drawn times within the run, so that a law
+    that does something else after the start (replays its first torque, say) is seen to."""
+    rng, clock = rng_for(seed, check), rng_for(seed, check + " time")
     cases = []
     for k in range(n):
         q = draw_configuration(rng, elbow_up=bool(k % 2 == 0))
-        state = State(q, rng.uniform(-1.5, 1.5, 3), 0.0)
+        state = State(q, rng.uniform(-1.5, 1.5, 3), 0.0 if k == 0 else float(clock.uniform(0.1, DURATION)))
         cases.append(
             (state, q + rng.uniform(-0.5, 0.5, 3), float(rng.uniform(*gains[0])), float(rng.uniform(*gains[1])))
         )
@@ -275,6 +278,7 @@ def _ct_mistakes(T, state, q_d, Kp, Kd):
         "no_damping": Mistake(M @ (Kp * e) + h, "the damping term −Kd q̇ inside M(q)(...) is missing.", 0.5),
         "damping_sign": Mistake(M @ (Kp * e + Kd * qdot) + h, "the damping has the wrong sign: it must be −Kd q̇.", 0.5),
         "bias_sign": Mistake(M @ v - h, "h(q, q̇) must be added, not subtracted.", 0.25),
+        "gravity_only": Mistake(M @ v + terms(arm_model(), state.q, np.zeros(3)).h, GRAVITY_ONLY, 0.5),
         "outside": Mistake(
             M @ (Kp * e) - Kd * qdot + h, "the damping −Kd q̇ must sit inside M(q)(...), with the spring term.", 0.5
         ),

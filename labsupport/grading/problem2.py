@@ -25,6 +25,7 @@ import itertools
 import numpy as np
 
 from labsupport.grading.common import (
+    GRAVITY_ONLY,
     INVERSE_MASS,
     MARGINS,
     STILL_RTOL,
@@ -76,10 +77,6 @@ START_TOL = 1e-4  # [m]
 #: The tracking check follows one turn of a seeded circle.
 TRACK_DURATION = 1 / FREQUENCY
 
-GRAVITY_ONLY = (
-    "the bias term holds gravity alone; h(q, q̇) = data.qfrc_bias also holds the Coriolis and "
-    "centrifugal forces, which grow with the speed (gravity alone is h only at rest)"
-)
 OVER_THE_TOP = (
     "the over-the-top solution: it reaches x_d with the pan angle half a turn from atan2(y, x) and the "
     "arm leaning back over its shoulder"

@@ -16,6 +16,12 @@ Two places enforce it:
 * the batch grader's sandbox replaces the :data:`FORBIDDEN` modules by stubs whose functions
   raise ``RuntimeError(forbidden_message(name))``; the checks recognise that message
   (:func:`is_forbidden_message`) and give the same zero with the same reason.
+
+The batch grader decides. The in-notebook watch runs in the student's own process, so a
+student set on hiding a call can: turn the watch off and on again within the call, run the
+borrowed law from a thread started before the call, or ``exec`` a law's source copied out
+with ``inspect``. In the sandbox none of these finds a law to run, and the TODO still scores
+zero (an ``exec`` of copied source, with that code's own error as the reason).
 """
 
 from __future__ import annotations

@@ -24,6 +24,7 @@ grader, nor any other submission.
 
 from __future__ import annotations
 
+import ast
 import os
 import resource
 import shutil
@@ -100,14 +101,30 @@ def wheel_files(checkout: Path = CHECKOUT) -> dict[str, Path]:
     return files
 
 
-def stub_source(module: str, submodules: list[str], message_template: str) -> str:
-    """A forbidden module's stand-in: every attribute is a function raising the rule's message."""
+def public_names(source: str) -> list[str]:
+    """The names a module's source defines at its top level without a leading ``_`` (what
+    ``from module import *`` takes from it)."""
+    names = []
+    for node in ast.parse(source).body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.append(node.name)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            names += [t.id for t in targets if isinstance(t, ast.Name)]
+    return sorted({name for name in names if not name.startswith("_")})
+
+
+def stub_source(module: str, submodules: list[str], message_template: str, names: list[str] = ()) -> str:
+    """A forbidden module's stand-in: every attribute is a function raising the rule's message;
+    ``__all__`` lists the real module's ``names``, so ``from module import *`` takes such a
+    function for each (and a call to it gets the rule's reason, not a ``NameError``)."""
     return f'''"""{module} is not available while a submission is graded (see the grader's notes)."""
 
 import importlib as _importlib
 
 _TEMPLATE = {message_template!r}
 _SUBMODULES = {tuple(submodules)!r}
+__all__ = {sorted(names)!r}
 
 
 def __getattr__(name):
@@ -146,7 +163,8 @@ def write_student_package(dest: Path, checkout: Path = CHECKOUT) -> list[str]:
                 if rel.endswith("__init__.py")
                 else []
             )
-            target.write_text(stub_source(module, subs, template), encoding="utf-8")
+            names = public_names(Path(src).read_text(encoding="utf-8"))
+            target.write_text(stub_source(module, subs, template, names), encoding="utf-8")
             stubbed.append(module)
         else:
             shutil.copyfile(src, target)
