@@ -52,7 +52,7 @@ def cumulative_effort(t, tau):
 
     ``tau`` is ``(N,)`` or ``(N, nu)``; the squared norm sums the joints.
     """
-    t, tau = validate.times(t), np.asarray(tau, dtype=float)
+    t, tau = validate.times(t, increasing=True), np.asarray(tau, dtype=float)
     if t.ndim != 1 or tau.ndim not in (1, 2) or len(tau) != len(t):
         raise ValueError(
             f"cumulative_effort needs one torque per time: t of shape (N,) and tau of shape (N,) or (N, nu), "
@@ -66,9 +66,7 @@ def _step_response(y, t=None) -> tuple[np.ndarray, np.ndarray | None]:
     """A step response as float arrays: ``y`` one-dimensional with at least one sample and, if
     given, times ``t`` of the same length; a ``ValueError`` otherwise."""
     y = np.asarray(y, dtype=float)
-    t = None if t is None else validate.times(t)
-    if t is not None and t.ndim == 1 and not np.all(np.diff(t) > 0):
-        raise ValueError("the times t must increase from sample to sample")
+    t = None if t is None else validate.times(t, increasing=True)
     if y.ndim != 1:
         raise ValueError(
             f"a step response is one coordinate over time (a 1-D array), got y of shape {y.shape}; "
@@ -101,7 +99,7 @@ def settling_time(t, y, final: float, initial: float, band: float = 0.02) -> flo
     """
     y, t = _step_response(y, validate.times(t))
     final, initial = validate.number("final", final), validate.number("initial", initial)
-    band = validate.number("band", band, positive=True)
+    band = validate.band(band)
     if final == initial:
         raise ValueError("final and initial are equal: a step of zero size has no settling time")
     outside = np.abs(y - final) > band * abs(final - initial)
@@ -147,9 +145,21 @@ def second_order_step(t, wn: float, zeta: float):
         return 1 - np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta / np.sqrt(1 - zeta**2) * np.sin(wd * t))
     if zeta == 1:
         return 1 - (1 + wn * t) * np.exp(-wn * t)
-    s1 = -wn * (zeta - np.sqrt(zeta**2 - 1))
-    s2 = -wn * (zeta + np.sqrt(zeta**2 - 1))
+    s1, s2 = overdamped_poles(wn, zeta)
     return 1 + (s2 * np.exp(s1 * t) - s1 * np.exp(s2 * t)) / (s1 - s2)
+
+
+def overdamped_poles(wn: float, zeta: float) -> tuple[float, float]:
+    r"""The two real poles of an overdamped second-order system (:math:`\zeta > 1`), slow then fast:
+
+    .. math:: s_{1,2} = -\omega_n\big(\zeta \mp \sqrt{\zeta^2 - 1}\big)
+
+    :math:`s_1` is computed as :math:`\omega_n^2 / s_2` (their product), since
+    :math:`\zeta - \sqrt{\zeta^2 - 1}` cancels to 0 in floating point for a large
+    :math:`\zeta` (1e8) while the slow mode still decays.
+    """
+    s2 = -wn * (zeta + np.sqrt(zeta**2 - 1))
+    return wn**2 / s2, s2
 
 
 def second_order_error(t, e0, edot0, wn: float, zeta: float):
@@ -172,8 +182,7 @@ def second_order_error(t, e0, edot0, wn: float, zeta: float):
         return np.exp(-a * t) * (e0 * np.cos(wd * t) + (edot0 + a * e0) / wd * np.sin(wd * t))
     if zeta == 1:
         return np.exp(-wn * t) * (e0 + (edot0 + wn * e0) * t)
-    r = wn * np.sqrt(zeta**2 - 1)
-    s1, s2 = -a + r, -a - r
+    s1, s2 = overdamped_poles(wn, zeta)
     c1 = (edot0 - s2 * e0) / (s1 - s2)
     c2 = e0 - c1
     return c1 * np.exp(s1 * t) + c2 * np.exp(s2 * t)
@@ -215,9 +224,7 @@ def _after(log, after: float) -> np.ndarray:
 
 def rms_position_error(log, after: float = 0.0) -> float:
     r"""RMS of the site's position error norm over ``t >= after`` [m], from ``log.err``."""
-    if validate.run_log(log).err.shape[1] == 0:
-        raise ValueError("the log has no position error: pass site= and reference= to simulate to record one")
-    return rms_norm(log.err[_after(log, after)])
+    return rms_norm(validate.run_log(log, reference=True).err[_after(log, after)])
 
 
 def orientation_error(log, quat_d) -> np.ndarray:

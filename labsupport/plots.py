@@ -98,10 +98,19 @@ def _runs(runs) -> Mapping[str, object]:
     return runs
 
 
-def _styled(runs: Mapping[str, object]) -> list[tuple[str, object, str, str]]:
+def _styled(
+    runs: Mapping[str, object], site: bool = False, reference: bool = False
+) -> list[tuple[str, object, str, str]]:
     """``(label, run, line style, colour)`` of each run: its colour is ``C0``, ``C1``, ... by its
     place, so a run keeps its colour in every panel, whatever else a panel draws first (a
-    reference band or the workspace's circles would otherwise shift Matplotlib's colour cycle)."""
+    reference band or the workspace's circles would otherwise shift Matplotlib's colour cycle).
+    With ``site`` (``reference``) each run must have logged a site's position (and error)."""
+    if site or reference:
+        for label, run in _runs(runs).items():
+            try:
+                validate.run_log(run, site=site, reference=reference)
+            except ValueError as err:
+                raise ValueError(f"run {label!r}: {err}") from None
     return [
         (label, run, style, f"C{i}")
         for i, ((label, run), style) in enumerate(zip(_runs(runs).items(), itertools.cycle(_LINE_STYLES)))
@@ -242,6 +251,7 @@ def reaching_figure(runs: Mapping[str, object], q_d, target, reach: tuple[float,
     :math:`q_{d,j} - q_j` (desired minus actual) in degrees, the two joint torques, then the
     end-effector path and the distance to the target in millimetres.
     """
+    _styled(runs, site=True)  # every run logged the end effector
     fig, axes = _figure(10.0, 3, 2)
     target = validate.vector("target (x, y)", target, (2,))
     for j in range(2):
@@ -282,6 +292,17 @@ def circle_tracking_figure(runs: Mapping[str, object], desired_path):
     the text column: on the left the path against the desired circle; on the right, stacked,
     the norm of the Cartesian error in millimetres and the joint torques.
     """
+    _styled(runs, site=True, reference=True)  # every run logged the end effector and its error
+    try:
+        path = np.asarray(desired_path, dtype=float)
+    except (TypeError, ValueError):
+        path = np.empty(0)
+    if path.ndim != 2 or path.shape[1] < 2:
+        raise ValueError(
+            "desired_path must be the circle's points, an (N, 2) array such as reference(t).pos, "
+            f"got {validate.short(desired_path)}"
+        )
+    desired_path = path
     fig, axes = plt.subplot_mosaic(
         [["path", "error"], ["path", "torques"]], figsize=(column_width(), 6.0), layout="constrained"
     )

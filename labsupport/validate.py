@@ -65,8 +65,17 @@ def number(name: str, value, *, positive: bool = False, nonnegative: bool = Fals
     return result
 
 
-def times(t) -> np.ndarray:
-    """``t`` as a float array of finite times [s]: one number, or an array of them."""
+def band(value) -> float:
+    """A settling band: a fraction of the step between 0 and 1 (0.02 for 2 %), else a ``ValueError``."""
+    value = number("band", value, positive=True)
+    if value >= 1:
+        raise ValueError(f"band is a fraction of the step, below 1 (0.02 for 2 %), got {value:g}")
+    return value
+
+
+def times(t, increasing: bool = False) -> np.ndarray:
+    """``t`` as a float array of finite times [s]: one number, or an array of them; with
+    ``increasing``, an array whose times increase from sample to sample."""
     if t is None:
         raise ValueError("t must be a time in seconds (a number or an array of them), got None")
     _not_text("t", t)
@@ -76,6 +85,8 @@ def times(t) -> np.ndarray:
         raise ValueError(f"t must be a time in seconds (a number or an array of them), got {short(t)}") from None
     if not np.isfinite(t).all():
         raise ValueError(f"t must be finite, got {short(t)}")
+    if increasing and t.ndim == 1 and not np.all(np.diff(t) > 0):
+        raise ValueError("the times t must increase from sample to sample")
     return t
 
 
@@ -89,11 +100,15 @@ def _not_text(name: str, value) -> None:
 LOG_FIELDS = ("t", "q", "qdot", "tau", "ctrl", "ee", "ee_rot", "ref", "err", "site")
 
 
-def run_log(log):
-    """``log`` if it has the arrays of a ``labsupport.sim.Log``, else a ``ValueError`` that says
-    what to pass."""
+def run_log(log, site: bool = False, reference: bool = False):
+    """``log`` if it has the arrays of a ``labsupport.sim.Log`` (with a site's position, and a
+    reference's error, when asked for), else a ``ValueError`` that says what to pass."""
     if not all(hasattr(log, name) for name in LOG_FIELDS):
         raise ValueError(f"log must be the Log that labsupport.sim.simulate returns, got {type(log).__name__}")
+    if site and np.shape(log.ee)[1:] != (3,):
+        raise ValueError("the log has no end-effector position: pass site= to simulate to record one")
+    if reference and np.shape(log.err)[1:] in ((), (0,)):
+        raise ValueError("the log has no position error: pass site= and reference= to simulate to record one")
     return log
 
 

@@ -253,6 +253,25 @@ def test_figure_arguments_of_the_wrong_kind_are_named():
     plt.close("all")
 
 
+def test_the_task3_figures_name_a_run_without_a_site_or_reference():
+    """Without site= the figures ended in an IndexError; without reference= the error panel drew a
+    flat 0 mm while the arm was 57 mm off."""
+    from dataclasses import replace
+
+    t = np.linspace(0.0, 1.0, 11)
+    run = _log(t, 0.1, 2)
+    no_site = replace(run, ee=np.empty((11, 0)))
+    with pytest.raises(ValueError, match=r"run 'PD': the log has no end-effector position: pass site="):
+        plots.reaching_figure({"PD": no_site}, [0.0, 0.0], [0.5, 0.5], (0.1, 1.0))
+    path = np.c_[np.cos(t), np.sin(t)]
+    with pytest.raises(ValueError, match=r"run 'OS-CT': the log has no position error: pass site= and reference="):
+        plots.circle_tracking_figure({"OS-CT": _log(t, 0.1, 2)}, path)
+    with pytest.raises(ValueError, match=r"desired_path must be the circle's points, an \(N, 2\) array"):
+        tracked = replace(run, ref=path, err=path - run.ee[:, :2])
+        plots.circle_tracking_figure({"OS-CT": tracked}, lambda t: path)
+    plt.close("all")
+
+
 def test_planar_arm_frames_names_panels_of_different_lengths():
     from labsupport.kinematics.planar_2r import LAB_ARM
 

@@ -172,3 +172,29 @@ def test_the_annulus_sampler_refuses_a_margin_that_is_not_a_distance():
     for margin, message in ((-0.05, "margin must be non-negative"), (None, "margin must be finite")):
         with pytest.raises(ValueError, match=message):
             k2.sample_annulus(0, margin=margin)
+
+
+def test_a_whole_reference_where_positions_belong_is_named():
+    """k2.inverse_kinematics(circle_2d(0, ...)) read (pos, vel, acc) as three targets and returned
+    three solutions; k2.joint_reference of a sampled reference or of bare points failed deep in
+    NumPy, or read three points as pos, vel and acc."""
+    from labsupport.trajectories import Reference, circle_2d, sample, set_point
+
+    ref = circle_2d(0.0, (0.5, 0.2), 0.15, 6.0)
+    with pytest.raises(ValueError, match=r"x must be positions, got a whole Reference .*pass its position, ref\.pos"):
+        k2.inverse_kinematics(ref)
+    with pytest.raises(ValueError, match=r"got a whole Reference"):
+        k2.inverse_kinematics(set_point(0.0, [0.5, 0.2]))
+    np.testing.assert_allclose(k2.forward_kinematics(k2.inverse_kinematics(ref.pos)), ref.pos, atol=1e-12)
+    points = np.array([[0.5, 0.2], [0.5, 0.1], [0.4, 0.2]])
+    with pytest.raises(ValueError, match=r"ref must be a trajectories\.Reference .*got ndarray"):
+        k2.joint_reference(points)
+    sampled = sample(lambda t: circle_2d(t, (0.5, 0.2), 0.15, 6.0), 0.01, 1.0)
+    with pytest.raises(ValueError, match=r"got SampledReference"):
+        k2.joint_reference(sampled)
+    with pytest.raises(ValueError, match=r"ref\.vel must have 2 components on its last axis, got shape \(\)"):
+        k2.joint_reference(Reference(np.array([0.5, 0.2]), np.float64(0.0), np.float64(0.0)))
+    with pytest.raises(ValueError, match=r"one shape, got \(2,\), \(3, 2\) and \(2,\)"):
+        k2.joint_reference(Reference(ref.pos, np.zeros((3, 2)), ref.acc))
+    joint = k2.joint_reference(ref)  # the right call still works, and its rates match the path's
+    np.testing.assert_allclose(k2.jacobian(joint.pos) @ joint.vel, ref.vel, atol=1e-12)

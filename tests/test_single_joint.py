@@ -378,6 +378,27 @@ def test_gains_and_settling_time_name_inputs_that_are_not_numbers():
         metrics.settling_time(t[::-1], y, 1.0, 0.0)
 
 
+def test_a_band_given_in_percent_and_effort_over_backward_times_are_refused():
+    """band=2 (meant as 2 %) gave a settling time of 0; a band below e^-12 gave nan; effort over
+    times that run backwards came out negative; a huge damping ratio gave a message about a t
+    never passed."""
+    t = np.linspace(0.0, 1.0, 11)
+    y = 1.0 - np.exp(-5 * t)
+    for band in (2, 1.0, 1.5):
+        with pytest.raises(ValueError, match=r"band is a fraction of the step, below 1 \(0\.02 for 2 %\)"):
+            metrics.settling_time(t, y, 1.0, 0.0, band=band)
+        with pytest.raises(ValueError, match="band is a fraction"):
+            gains.step_settling_time(1.0, 0.5, band=band)
+    # a narrow band: the exact settling time of the envelope-bounded response, not nan
+    narrow = gains.step_settling_time(1.0, 1.0, band=1e-9)
+    assert np.isfinite(narrow) and 20.0 < narrow < 30.0  # critically damped: 1 - y = (1 + t) e^-t, no overshoot
+    assert abs((1 + narrow) * np.exp(-narrow) - 1e-9) < 1e-12
+    # overdamped: the slow mode's rate wn (zeta - sqrt(zeta^2 - 1)) = wn / (2 zeta) for large zeta
+    assert gains.step_settling_time(1.0, 1e8) == pytest.approx(np.log(50) * 2e8, rel=1e-3)  # was nan
+    with pytest.raises(ValueError, match="must increase"):
+        metrics.cumulative_effort([1.0, 0.0], [1.0, 1.0])
+
+
 def test_the_saturation_measures_check_what_they_are_given():
     model, data = load_model("planar_2r")
     log = sim.simulate(model, data, lambda m, d: np.full(2, 5.0), 0.01)

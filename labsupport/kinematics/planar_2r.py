@@ -73,6 +73,11 @@ LAB_ARM = Planar2R()
 def _q(q, name="q") -> np.ndarray:
     """``q`` (or a position ``x``) as a float array of shape ``(..., 2)`` with finite
     entries, or a ``ValueError`` naming it."""
+    if isinstance(q, Reference):  # NumPy would read (pos, vel, acc) as three points
+        raise ValueError(
+            f"{name} must be positions, got a whole Reference (position, velocity, "
+            f"acceleration): pass its position, ref.pos"
+        )
     try:
         q = np.asarray(q, dtype=float)
     except (TypeError, ValueError):
@@ -232,6 +237,25 @@ def inverse_kinematics(
     return np.stack([q1, q2], axis=-1)
 
 
+def _path(ref) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The position, velocity and acceleration of a Cartesian ``Reference``, arrays
+    of one shape ``(..., 2)``, or a ``ValueError`` that says what to pass."""
+    if not isinstance(ref, Reference):
+        raise ValueError(
+            "ref must be a trajectories.Reference (pos, vel, acc) of the path, "
+            "such as circle_2d(t, ...) for an array of times t; "
+            f"got {type(ref).__name__}"
+        )
+    x, xdot = _q(ref.pos, "ref.pos"), _q(ref.vel, "ref.vel")
+    xddot = _q(ref.acc, "ref.acc")
+    if not x.shape == xdot.shape == xddot.shape:
+        raise ValueError(
+            "ref.pos, ref.vel and ref.acc must have one shape, got "
+            f"{x.shape}, {xdot.shape} and {xddot.shape}"
+        )
+    return x, xdot, xddot
+
+
 def joint_reference(
     ref: Reference,
     arm: Planar2R = LAB_ARM,
@@ -249,7 +273,7 @@ def joint_reference(
     ``ValueError`` if the path reaches a singular configuration
     (:math:`|\det J| <` ``min_det``: arm stretched or folded).
     """
-    x, xdot, xddot = (np.asarray(a, dtype=float) for a in ref)
+    x, xdot, xddot = _path(ref)
     q = inverse_kinematics(x, arm, branch)
     J = jacobian(q, arm)
     det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
