@@ -227,8 +227,14 @@ def site_jdot_qdot(
         raise _bad_out("site_jdot_qdot", out, (6,)) from None
 
 
+#: The smallest pivot of :math:`J J^\top` (the square of :math:`J`'s smallest singular value)
+#: at which a task Jacobian still counts as regular [m² per rad²]: below it the arm is stretched
+#: out or folded, for :func:`jacobian_solve` and :func:`task_space_inertia` alike.
+SINGULAR_PIVOT = 1e-10
+
+
 def jacobian_solve(
-    J: np.ndarray, rhs: np.ndarray, min_pivot: float = 1e-10, out: np.ndarray | None = None
+    J: np.ndarray, rhs: np.ndarray, min_pivot: float = SINGULAR_PIVOT, out: np.ndarray | None = None
 ) -> np.ndarray:
     r""":math:`x = J^{-1} y` for a square task Jacobian, or a ``ValueError`` at a singular configuration.
 
@@ -259,6 +265,7 @@ def jacobian_solve(
     if rank < d:
         if not np.isfinite(J).all():
             raise ValueError(f"the Jacobian has entries that are not finite (NaN or inf): {J.tolist()}")
+        _refuse_zero_jacobian(J)
         raise ValueError(
             "the Jacobian is singular at this configuration (the arm is stretched out or "
             "folded): no joint acceleration gives the task acceleration asked for; keep the "
@@ -270,6 +277,16 @@ def jacobian_solve(
         return J.T.dot(z, out=out)  # x = J^T z
     except (TypeError, ValueError):
         raise _bad_out("jacobian_solve", out, (nv,)) from None
+
+
+def _refuse_zero_jacobian(J: np.ndarray) -> None:
+    """``ValueError`` for a Jacobian of zeros only: not a singular arm, but data whose state was
+    set without its kinematics being computed."""
+    if not J.any():
+        raise ValueError(
+            "the Jacobian is all zeros: its data holds no kinematics yet. Run mujoco.mj_forward(model, data) "
+            "after setting the state (on a scratch MjData: mujoco.mj_kinematics, then mujoco.mj_comPos)"
+        )
 
 
 def task_space_inertia(model: mujoco.MjModel, data: mujoco.MjData, jac: np.ndarray, damping: float = 0.0) -> np.ndarray:
@@ -289,7 +306,10 @@ def task_space_inertia(model: mujoco.MjModel, data: mujoco.MjData, jac: np.ndarr
     lam_inv = jac @ minv_jt
     if damping:
         lam_inv = lam_inv + damping * np.eye(lam_inv.shape[0])
-    if not damping and np.linalg.matrix_rank(jac) < jac.shape[0]:
+    if not damping and (
+        jac.shape[0] > jac.shape[1] or np.linalg.svd(jac, compute_uv=False).min() ** 2 < SINGULAR_PIVOT
+    ):
+        _refuse_zero_jacobian(jac)
         raise ValueError(
             "task_space_inertia: J has lost rank, so J M⁻¹ Jᵀ is singular and Λ does not exist here (the arm "
             "is stretched out or folded, or J has more rows than joints); pass damping > 0 for a bounded Λ"

@@ -183,7 +183,10 @@ def render_run(
     Raises:
         ValueError: ``fps`` outside (0, 60], a camera the model does not have, a log of another
             model, a reference of more than 3 columns, a ``speed`` or ``until`` that is not a
-            positive number, or a video of more than :data:`labsupport.plots.MAX_FRAMES` frames.
+            positive number, a log whose rows are not evenly spaced in time, or a video of more
+            than :data:`labsupport.plots.MAX_FRAMES` frames.
+
+    The video's clock is the log's own (its rows' spacing), not the model's time step.
     """
     validate.mujoco_model(model)
     validate.run_log(log)
@@ -201,7 +204,7 @@ def render_run(
             "replay a log with the model that produced it"
         )
     camera = _camera_id(model, camera)
-    dt = model.opt.timestep
+    dt = _log_step(log, model.opt.timestep)
     n = len(log.t)
     frame_steps = frame_indices(n, dt, fps, speed, until)
     stride = max(1, int(round(trace_step / dt)))
@@ -237,6 +240,21 @@ def render_run(
         if bar is not None:
             bar.close()
     return frames
+
+
+def _log_step(log: Log, default: float) -> float:
+    """The time between a log's rows [s] (``default`` for a log of one row): a run of another
+    time step than the model's (the analytic single joint, a model with a finer step) plays at
+    its own pace. Rows unevenly spaced are refused: a video shows them at even intervals."""
+    if len(log.t) < 2:
+        return default
+    steps = np.diff(log.t)
+    if not (steps > 0).all() or steps.max() - steps.min() > 1e-6 * steps.max():
+        raise ValueError(
+            f"the log's rows must be evenly spaced in time to be replayed, got steps from {steps.min():.6g} "
+            f"to {steps.max():.6g} s"
+        )
+    return float(steps.mean())
 
 
 def render_picture(
@@ -385,6 +403,12 @@ def video_html(
     """
     text = escape(text_alternative(description, "a video"))
     frames = np.asarray(frames)
+    if frames.ndim != 4 or len(frames) == 0 or frames.shape[-1] != 3:
+        raise ValueError(
+            "frames must be a video: an (F, height, width, 3) array of F >= 1 RGB frames (render_run makes "
+            f"one), got shape {frames.shape}; for a single picture use show_picture"
+        )
+    fps = validate.number("fps", fps, positive=True)
     require_ffmpeg()
     data = mediapy.compress_video(frames, fps=fps, qp=qp)
     html = mediapy.html_from_compressed_video(data, frames.shape[2], frames.shape[1], title=title, autoplay=False)

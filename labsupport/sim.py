@@ -380,8 +380,8 @@ def _controller_failed(err: Exception, model: mujoco.MjModel, data: mujoco.MjDat
     if isinstance(err, np.linalg.LinAlgError):
         message += (
             ". A matrix the law solves with or inverts is singular here: the Jacobian when the arm is stretched "
-            "out or folded (keep the target inside the workspace, away from its edge), or the mass matrix of data "
-            "that has not been through mj_forward"
+            "out or folded (keep the target inside the workspace, away from its edge), or a matrix of data whose "
+            "state was set without mj_forward (on a scratch MjData: mj_kinematics, then mj_comPos)"
         )
     if "shape" in message or isinstance(err, IndexError):
         message += (

@@ -182,6 +182,25 @@ def test_task_space_inertia_names_a_singular_jacobian(arm):
     assert np.all(np.isfinite(dynamics.task_space_inertia(model, data, J, damping=1e-3)))
 
 
+@pytest.mark.parametrize("q2", [1e-10, 1e-12, np.pi - 1e-9])
+def test_task_space_inertia_of_a_nearly_stretched_or_folded_arm_is_named_as_such(q2):
+    """Near q2 = 0 or pi, Λ was either 1.5e16 kg with no word, or refused with advice to run
+    mj_forward, which had been run; jacobian_solve refuses the same J as singular."""
+    model, data = load_model("planar_2r")
+    data.qpos[:] = [0.3, q2]
+    mujoco.mj_forward(model, data)
+    J = dynamics.site_jacobian(model, data, "end_effector")[:2]
+    with pytest.raises(ValueError, match="singular"):
+        dynamics.jacobian_solve(J, np.array([1.0, 0.0]))
+    with pytest.raises(ValueError, match="J has lost rank.*stretched out or folded"):
+        dynamics.task_space_inertia(model, data, J)
+    data.qpos[:] = [0.3, 1.0]  # a bent arm: Λ exists, and Jᵀ Λ = M J⁻¹
+    mujoco.mj_forward(model, data)
+    J = dynamics.site_jacobian(model, data, "end_effector")[:2]
+    lam = dynamics.task_space_inertia(model, data, J)
+    np.testing.assert_allclose(J.T @ lam, dynamics.mass_matrix(model, data) @ np.linalg.inv(J), rtol=1e-9)
+
+
 def test_model_and_data_of_the_wrong_kind_are_named(arm):
     model, data = arm
     with pytest.raises(ValueError, match="model and data are swapped"):
@@ -267,6 +286,22 @@ def test_jacobian_solve_is_the_inverse_and_refuses_a_singular_jacobian():
     J = np.array([[0.9, 0.4], [0.0, 0.0]])  # the 2R stretched out along x
     with pytest.raises(ValueError, match="singular"):
         dynamics.jacobian_solve(J, np.array([1.0, 0.0]))
+
+
+def test_the_jacobian_of_a_scratch_data_without_kinematics_is_named_as_such():
+    """A scratch MjData set to a reference configuration without mj_comPos gives an all-zero
+    Jacobian; it used to be called singular ("the arm is stretched out or folded"), which it
+    was not."""
+    model, _ = load_model("planar_2r")
+    scratch = mujoco.MjData(model)
+    scratch.qpos[:] = [0.3, 1.2]
+    mujoco.mj_kinematics(model, scratch)  # mj_comPos forgotten
+    J = dynamics.site_jacobian(model, scratch, "end_effector")[:2]
+    with pytest.raises(ValueError, match=r"all zeros: its data holds no kinematics yet.*then mujoco\.mj_comPos"):
+        dynamics.jacobian_solve(J, np.array([1.0, 0.0]))
+    mujoco.mj_comPos(model, scratch)
+    J = dynamics.site_jacobian(model, scratch, "end_effector")[:2]
+    np.testing.assert_allclose(J @ dynamics.jacobian_solve(J, np.array([1.0, 0.0])), [1.0, 0.0], atol=1e-12)
 
 
 def test_jdot_qdot_fills_out_and_returns_a_fresh_array_otherwise(arm):

@@ -540,6 +540,29 @@ def test_a_picture_names_a_bad_path_and_needs_a_description():
         render.show_picture(model, data, description="arm")
 
 
+def test_a_replay_keeps_the_logs_own_clock_and_a_video_needs_frames():
+    """render_run timed a log by the model's step: the analytic single joint logged every 10 ms
+    and replayed on the 1 ms MuJoCo model showed its first 0.2 s only. video_html of no frames
+    ended in a bare StopIteration, and one (H, W, 3) picture became H frames."""
+    from dataclasses import replace
+
+    from labsupport.plants import SingleJoint, load_model
+
+    model, _ = load_model("single_joint")
+    log = SingleJoint().simulate(lambda t, s: 2 * (1 - s[0]) - 0.5 * s[1], 2.0, dt=0.01)
+    dt = render._log_step(log, model.opt.timestep)
+    assert dt == pytest.approx(0.01) and model.opt.timestep == pytest.approx(0.001)
+    assert len(plots.frame_indices(len(log.t), dt, 10.0)) == 20  # two seconds at 10 frames/s, not 2 frames
+    uneven = replace(log, t=log.t**2)
+    with pytest.raises(ValueError, match="evenly spaced in time"):
+        render.render_run(model, uneven, progress=False)
+    for frames in (np.zeros((0, 48, 64, 3), np.uint8), [], np.zeros((48, 64, 3), np.uint8)):
+        with pytest.raises(ValueError, match=r"frames must be a video: an \(F, height, width, 3\) array"):
+            render.video_html(frames, fps=10, description="the arm turns one full circle")
+    with pytest.raises(ValueError, match="fps must be positive"):
+        render.video_html(np.zeros((2, 48, 64, 3), np.uint8), fps=0, description="the arm turns one full circle")
+
+
 def test_frame_indices_pick_the_sample_nearest_each_frame_time():
     """Frame i of a video at f frames/s played at speed s shows the sample nearest t = i s / f;
     ``until`` ends the span; a span shorter than a frame shows its first sample, and a video
