@@ -744,6 +744,22 @@ def test_calling_labsupports_controllers_scores_zero():
             assert "labsupport.controllers.joint_space.ct_joint_torque" in result.message
 
 
+def test_a_law_imported_inside_the_call_is_named_not_its_module(monkeypatch):
+    """Importing the module inside the call ran its top-level code first, and the reason named
+    "labsupport.controllers.joint_space.<module>" instead of the law that was called."""
+    monkeypatch.delitem(sys.modules, "labsupport.controllers.joint_space")
+
+    def imports_then_calls(model, data, q_d, Kp, Kd):
+        from labsupport.controllers.joint_space import ct_joint_torque
+
+        return ct_joint_torque(model, data, q_d, np.zeros(3), np.zeros(3), Kp, Kd)
+
+    result = grade("p1_ct", ct_joint_torque=imports_then_calls)
+    assert result.score == 0 and rules.MARKER in result.message
+    assert "labsupport.controllers.joint_space.ct_joint_torque" in result.message
+    assert "<module>" not in result.message
+
+
 def test_calling_labsupports_kinematics_scores_zero(master1):
     def ik_through_2r(x, elbow_up=True):
         x = np.asarray(x, float)

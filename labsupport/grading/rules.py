@@ -181,7 +181,9 @@ def call_watched(fn: Callable, *args, **kwargs):
     previous, previous_threads = sys.getprofile(), threading.getprofile()
 
     def watch(frame, event, arg):
-        if event == "call" and not used:
+        # a module's own top-level code (importing it inside the call) is not a use: the call
+        # into it that follows is, and is named by the function called
+        if event == "call" and not used and frame.f_code.co_name != "<module>":
             module = _forbidden_module_of(frame)
             if module is not None:
                 used.append(f"{module}.{_called_name(frame)}")
