@@ -98,19 +98,21 @@ def _runs(runs) -> Mapping[str, object]:
     return runs
 
 
-def _styled(
-    runs: Mapping[str, object], site: bool = False, reference: bool = False
-) -> list[tuple[str, object, str, str]]:
+def _logged(runs, site: bool = False, reference: bool = False) -> Mapping[str, object]:
+    """``runs`` (as :func:`_runs` checks it) if every run logged a site's position (``site``) and
+    its error to a reference (``reference``), else a ``ValueError`` naming the run and what to pass."""
+    for label, run in _runs(runs).items():
+        try:
+            validate.run_log(run, site=site, reference=reference)
+        except ValueError as err:
+            raise ValueError(f"run {label!r}: {err}") from None
+    return runs
+
+
+def _styled(runs: Mapping[str, object]) -> list[tuple[str, object, str, str]]:
     """``(label, run, line style, colour)`` of each run: its colour is ``C0``, ``C1``, ... by its
     place, so a run keeps its colour in every panel, whatever else a panel draws first (a
-    reference band or the workspace's circles would otherwise shift Matplotlib's colour cycle).
-    With ``site`` (``reference``) each run must have logged a site's position (and error)."""
-    if site or reference:
-        for label, run in _runs(runs).items():
-            try:
-                validate.run_log(run, site=site, reference=reference)
-            except ValueError as err:
-                raise ValueError(f"run {label!r}: {err}") from None
+    reference band or the workspace's circles would otherwise shift Matplotlib's colour cycle)."""
     return [
         (label, run, style, f"C{i}")
         for i, ((label, run), style) in enumerate(zip(_runs(runs).items(), itertools.cycle(_LINE_STYLES)))
@@ -251,7 +253,7 @@ def reaching_figure(runs: Mapping[str, object], q_d, target, reach: tuple[float,
     :math:`q_{d,j} - q_j` (desired minus actual) in degrees, the two joint torques, then the
     end-effector path and the distance to the target in millimetres.
     """
-    _styled(runs, site=True)  # every run logged the end effector
+    runs = _logged(runs, site=True)
     fig, axes = _figure(10.0, 3, 2)
     target = validate.vector("target (x, y)", target, (2,))
     for j in range(2):
@@ -292,7 +294,7 @@ def circle_tracking_figure(runs: Mapping[str, object], desired_path):
     the text column: on the left the path against the desired circle; on the right, stacked,
     the norm of the Cartesian error in millimetres and the joint torques.
     """
-    _styled(runs, site=True, reference=True)  # every run logged the end effector and its error
+    runs = _logged(runs, site=True, reference=True)
     try:
         path = np.asarray(desired_path, dtype=float)
     except (TypeError, ValueError):
