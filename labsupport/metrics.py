@@ -15,7 +15,13 @@ def _samples(error) -> np.ndarray:
     """``error`` as a float array with at least one sample, or a ``ValueError``."""
     if error is None:
         raise ValueError("no error to take the RMS of (got None)")
-    error = np.asarray(error, dtype=float)
+    if all(hasattr(error, name) for name in validate.LOG_FIELDS):
+        raise ValueError("the RMS is taken of an error, not of a whole Log: pass log.err (or a column of it)")
+    validate.not_text("error", error)
+    try:
+        error = np.asarray(error, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"the RMS is taken of numbers, got {validate.short(error)}") from None
     if error.ndim == 0:
         raise ValueError(f"the RMS is taken over samples, an array of them; got the single number {error}")
     if error.size == 0:

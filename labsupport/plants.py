@@ -104,6 +104,7 @@ class SingleJoint:
         dt = validate.number("dt", dt, positive=True)
         if dt > duration:
             raise ValueError(f"dt must be at most the duration ({duration} s), got {dt!r}")
+        validate.steps(duration, dt)  # not a log past the memory
 
         if not callable(torque):
             raise ValueError(

@@ -157,10 +157,9 @@ def step_count(duration: float, dt: float, lab_timing: bool = False) -> int:
     """Number of steps of a run: ``round(duration / dt)``, or with ``lab_timing`` as many as the
     lab's ``while data.time < duration`` loop takes (time accumulated step by step in floating
     point, so 8 s at 2 ms is 4001 steps, not 4000)."""
-    duration = validate.number("duration", duration, positive=True)
-    dt = validate.number("dt", dt, positive=True)
+    n = validate.steps(duration, dt)
     if not lab_timing:
-        return int(round(duration / dt))
+        return n
     n, time = 0, 0.0
     while time < duration:
         time += dt

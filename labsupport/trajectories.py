@@ -218,7 +218,8 @@ def sample(
     dt = validate.number("dt", dt, positive=True)
     duration = validate.number("duration", duration, nonnegative=True)
     offset = validate.number("offset", offset)
-    t = np.arange(int(round(duration / dt)) + 2) * dt + offset
+    n = validate.steps(duration, dt) if duration > 0 else 0
+    t = np.arange(n + 2) * dt + offset
     try:
         ref = evaluate(reference, t)
         if ref.pos.shape[:1] != t.shape:

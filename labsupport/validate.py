@@ -31,7 +31,7 @@ def vector(name: str, value, shape) -> np.ndarray:
         ValueError: the value is not numeric, has another shape, or holds NaN or inf.
     """
     shape = (int(shape),) if np.ndim(shape) == 0 else tuple(int(n) for n in shape)
-    _not_text(name, value)
+    not_text(name, value)
     try:
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
@@ -51,7 +51,7 @@ def number(name: str, value, *, positive: bool = False, nonnegative: bool = Fals
     """
     if isinstance(value, (bool, np.bool_)):
         raise ValueError(f"{name} must be a number, got the boolean {value!r}")
-    _not_text(name, value)
+    not_text(name, value)
     try:
         result = float(np.asarray(value, dtype=float).reshape(()))
     except (TypeError, ValueError):
@@ -63,6 +63,25 @@ def number(name: str, value, *, positive: bool = False, nonnegative: bool = Fals
     if nonnegative and not result >= 0:
         raise ValueError(f"{name} must be non-negative, got {value!r}")
     return result
+
+
+#: The most time steps one run, or one sampled reference, may hold: 10 million (2.8 hours at
+#: 1 ms, a gigabyte or more of log); beyond it a mistyped duration would fill the memory, or, with
+#: the lab's timing, count steps for hours before it started.
+MAX_STEPS = 10_000_000
+
+
+def steps(duration: float, dt: float) -> int:
+    """``round(duration / dt)`` for a positive ``duration`` and time step ``dt`` (checked), or a
+    ``ValueError`` past :data:`MAX_STEPS`."""
+    duration, dt = number("duration", duration, positive=True), number("dt", dt, positive=True)
+    n = duration / dt
+    if n > MAX_STEPS:
+        raise ValueError(
+            f"duration / dt = {duration:g} s / {dt:g} s is {n:.3g} steps, more than the {MAX_STEPS:,} one run may "
+            "hold: shorten the duration (it is in seconds) or take a larger time step"
+        )
+    return int(round(n))
 
 
 def band(value) -> float:
@@ -78,7 +97,7 @@ def times(t, increasing: bool = False) -> np.ndarray:
     ``increasing``, an array whose times increase from sample to sample."""
     if t is None:
         raise ValueError("t must be a time in seconds (a number or an array of them), got None")
-    _not_text("t", t)
+    not_text("t", t)
     try:
         t = np.asarray(t, dtype=float)
     except (TypeError, ValueError):
@@ -90,7 +109,7 @@ def times(t, increasing: bool = False) -> np.ndarray:
     return t
 
 
-def _not_text(name: str, value) -> None:
+def not_text(name: str, value) -> None:
     """``ValueError`` for text where numbers belong (NumPy would read "5" as 5.0)."""
     if isinstance(value, (str, bytes)) or (isinstance(value, (list, tuple)) and any(isinstance(v, str) for v in value)):
         raise ValueError(f"{name} must be numbers, not text: got {short(value)}")

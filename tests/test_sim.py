@@ -688,3 +688,28 @@ def test_a_reference_given_as_a_value_is_named():
         sim.simulate(
             model, data, lambda m, d: np.zeros(2), 0.1, site="end_effector", reference=set_point(0.0, [0.5, 0.2])
         )
+
+
+def test_a_duration_past_what_memory_holds_is_refused_at_once():
+    """duration=1e12 (meant as something else) ended in "Unable to allocate 28.4 PiB", and with the
+    lab's timing counted steps for hours before anything ran; a reference sampled as finely and a
+    log passed to rms whole ended deep in NumPy."""
+    from labsupport import metrics, validate
+    from labsupport.plants import SingleJoint
+    from labsupport.trajectories import sinusoid
+
+    model, data = load_model("single_joint")
+    hold = lambda m, d: d.qfrc_bias  # noqa: E731
+    for timing in (False, True):
+        with pytest.raises(ValueError, match=r"is 1e\+15 steps, more than the 10,000,000 one run may hold"):
+            sim.simulate(model, data, hold, 1e12, lab_timing=timing)
+    with pytest.raises(ValueError, match="more than the 10,000,000"):
+        sample(sinusoid, 1e-9, 1e6)
+    with pytest.raises(ValueError, match="more than the 10,000,000"):
+        SingleJoint().simulate(lambda t, s: 0.0, 1e7)
+    assert sim.step_count(validate.MAX_STEPS * 1e-3, 1e-3) == validate.MAX_STEPS  # the bound itself is fine
+    log = sim.simulate(model, data, hold, 0.01)
+    with pytest.raises(ValueError, match="not of a whole Log: pass log.err"):
+        metrics.rms(log)
+    with pytest.raises(ValueError, match="error must be numbers, not text"):
+        metrics.rms(["1", "2"])
