@@ -446,6 +446,8 @@ def _as_torque(tau, nu: int) -> np.ndarray:
     if tau is None:
         raise ValueError(f"the controller returned None; it must return a torque of shape ({nu},)")
     validate.real("the controller returned", tau)
+    if isinstance(tau, (str, bytes)):  # NumPy would read "1" as 1 N·m
+        raise ValueError(f"the controller returned the text {tau!r}; it must return a torque of shape ({nu},)")
     try:
         tau = np.asarray(tau, dtype=float)
     except (TypeError, ValueError):

@@ -198,7 +198,7 @@ class SampledReference:
 
     def __call__(self, t) -> Reference:
         """The samples at the grid times ``t`` (a float or an array of them)."""
-        k = np.floor(np.asarray(t, dtype=float) / self.dt + 0.5).astype(int)  # as at(): halves up
+        k = np.floor(validate.times(t) / self.dt + 0.5).astype(int)  # as at(): halves up
         if np.any((k < 0) | (k >= len(self.pos))):
             raise ValueError(f"some times are outside the sampled reference [0, {(len(self.pos) - 1) * self.dt:.6g}] s")
         return Reference(self.pos[k], self.vel[k], self.acc[k])

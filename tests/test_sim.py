@@ -612,9 +612,15 @@ def test_a_controller_failing_or_returning_text_is_named_with_the_time(arm):
 
     with pytest.raises(TypeError, match=r"the controller raised TypeError at t = 0\.0000 s: unsupported operand"):
         sim.simulate(model, data, pd, 0.1)
-    for returned in ("abc", {"tau": 1.0}):
-        with pytest.raises(ValueError, match="the controller returned .*not numbers; it must return a torque of shape"):
-            sim.simulate(model, data, lambda m, d, r=returned: r, 0.1)
+    with pytest.raises(ValueError, match="the controller returned .*not numbers; it must return a torque of shape"):
+        sim.simulate(model, data, lambda m, d: {"tau": 1.0}, 0.1)
+    with pytest.raises(ValueError, match="the controller returned the text 'abc'; it must return a torque of shape"):
+        sim.simulate(model, data, lambda m, d: "abc", 0.1)
+    one, one_data = load_model("single_joint")  # "1" used to act as 1 N·m
+    with pytest.raises(
+        ValueError, match=r"the controller returned the text '1'; it must return a torque of shape \(1,\)"
+    ):
+        sim.simulate(one, one_data, lambda m, d: "1", 0.1)
 
 
 @pytest.mark.parametrize(

@@ -78,3 +78,14 @@ def test_a_sampled_reference_rounds_alike_both_ways_and_refuses_times_before_its
     for t in (-0.14, 1.2, float("nan")):
         with pytest.raises(ValueError):
             ref.at(t)
+
+
+def test_a_sampled_reference_called_at_a_time_that_is_not_one_says_so():
+    """nan or None used to be called "outside the sampled reference"; "0.1" was read as 0.1 s."""
+    from labsupport.trajectories import sample, sinusoid
+
+    ref = sample(sinusoid, 0.01, 1.0)
+    for t, words in ((float("nan"), "t must be finite"), (None, "t must be a time in seconds"), ("0.1", "not text")):
+        with pytest.raises(ValueError, match=words):
+            ref(t)
+    np.testing.assert_allclose(ref(np.array([0.0, 0.5])).pos, sinusoid(np.array([0.0, 0.5])).pos)
