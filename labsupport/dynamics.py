@@ -82,6 +82,11 @@ def mass_matrix(model: mujoco.MjModel, data: mujoco.MjData, out: np.ndarray | No
     except (TypeError, AttributeError):
         validate.model_and_data(model, data)  # names a model or data of the wrong kind
         raise _bad_out("mass_matrix", out, (model.nv, model.nv)) from None
+    if not out.diagonal().all():  # every joint has inertia: a zero is data never evaluated
+        raise ValueError(
+            "mass_matrix: the data holds no mass matrix yet (its diagonal has zeros): run "
+            "mujoco.mj_forward(model, data) after setting the state"
+        )
     return out
 
 

@@ -288,6 +288,19 @@ def test_jacobian_solve_is_the_inverse_and_refuses_a_singular_jacobian():
         dynamics.jacobian_solve(J, np.array([1.0, 0.0]))
 
 
+def test_the_mass_matrix_of_data_never_evaluated_is_refused_not_zero():
+    """mass_matrix(model, mujoco.MjData(model)) returned a matrix of zeros without a word."""
+    model, _ = load_model("planar_2r")
+    fresh = mujoco.MjData(model)
+    fresh.qpos[:] = [0.3, 1.2]
+    with pytest.raises(ValueError, match=r"no mass matrix yet .*run mujoco\.mj_forward\(model, data\)"):
+        dynamics.mass_matrix(model, fresh)
+    mujoco.mj_forward(model, fresh)
+    M = dynamics.mass_matrix(model, fresh)
+    np.testing.assert_allclose(M, M.T)
+    np.testing.assert_array_less(0.0, np.linalg.eigvalsh(M))  # symmetric positive definite
+
+
 def test_the_jacobian_of_a_scratch_data_without_kinematics_is_named_as_such():
     """A scratch MjData set to a reference configuration without mj_comPos gives an all-zero
     Jacobian; it used to be called singular ("the arm is stretched out or folded"), which it
