@@ -19,7 +19,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from labsupport import validate
-from labsupport.kinematics.planar_2r import elbow_position, forward_kinematics
+from labsupport.kinematics.planar_2r import Planar2R, elbow_position, forward_kinematics
 from labsupport.metrics import cumulative_effort
 
 #: Successive curves of a panel differ in line style or marker as well as in colour (WCAG 2.1,
@@ -376,6 +376,37 @@ def frame_indices(n_samples: int, dt: float, fps: float, speed: float = 1.0, unt
     return np.minimum(np.rint(np.arange(count) * speed / (fps * dt)).astype(int), n_samples - 1)
 
 
+def _arm_panels(panels) -> list[dict]:
+    """The panels of :func:`planar_arm_frames` with their arrays as float arrays, or a
+    ``ValueError`` naming the panel and the entry that is missing or of the wrong shape."""
+    if isinstance(panels, Mapping) or not isinstance(panels, Sequence) or not panels:
+        raise ValueError(
+            "panels must be a list of dicts, one per panel, such as [dict(q=log.q, title='PD')]; got "
+            f"{validate.short(panels)}"
+        )
+    checked = []
+    for i, panel in enumerate(panels):
+        if not isinstance(panel, Mapping) or "q" not in panel or "title" not in panel:
+            raise ValueError(
+                f"panel {i} must be a dict with q ((N, 2) joint angles) and title, got {validate.short(panel)}"
+            )
+        panel = dict(panel)
+        for key, shape in (("q", "(N, 2)"), ("ref", "(N, 2)"), ("path", "(M, 2)"), ("target", "(2,)")):
+            if key not in panel:
+                continue
+            try:
+                value = np.asarray(panel[key], dtype=float)
+            except (TypeError, ValueError):
+                value = np.empty(0)
+            if value.shape[-1:] != (2,) or value.ndim != (1 if key == "target" else 2):
+                raise ValueError(
+                    f"panel {i} ({panel['title']}): {key} must have shape {shape}, got {validate.short(panel[key])}"
+                )
+            panel[key] = value
+        checked.append(panel)
+    return checked
+
+
 def planar_arm_frames(
     panels: Sequence[Mapping],
     arm,
@@ -400,6 +431,9 @@ def planar_arm_frames(
     Returns:
         ``(F, height, width, 3)`` uint8 array, for :func:`mediapy.show_video`.
     """
+    panels = _arm_panels(panels)
+    if not isinstance(arm, Planar2R):
+        raise ValueError(f"arm must be a Planar2R (for example planar_2r.LAB_ARM), got {validate.short(arm)}")
     width, height = validate.vector("size (width, height)", size, (2,))
     if not (width == int(width) and height == int(height) and width > 0 and height > 0) or width % 2 or height % 2:
         raise ValueError(f"size must be two positive even whole numbers of pixels (H.264), got {size}")
@@ -419,6 +453,8 @@ def planar_arm_frames(
         )
     (n,) = lengths
     frames = np.arange(n) if frames is None else np.asarray(frames)
+    if frames.dtype.kind not in "iu" and frames.size:
+        raise ValueError(f"frames must be whole sample indices (see frame_indices), got {validate.short(frames)}")
     if frames.size and not (frames.min() >= 0 and frames.max() < n):
         raise ValueError(f"frames must be sample indices in [0, {n - 1}], got {frames.min()} to {frames.max()}")
     reach = arm.l1 + arm.l2 + 0.05

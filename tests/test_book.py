@@ -272,6 +272,37 @@ def test_the_task3_figures_name_a_run_without_a_site_or_reference():
     plt.close("all")
 
 
+def test_planar_arm_frames_names_a_panel_or_arm_of_the_wrong_kind():
+    """A panel without a title was a KeyError, a 1-D ref an IndexError, the arm's lengths as a
+    tuple an AttributeError, float frames "slice indices must be integers"."""
+    from labsupport.kinematics.planar_2r import LAB_ARM
+
+    q = np.zeros((3, 2))
+    cases = [
+        (dict(panels=[dict(q=q)], arm=LAB_ARM), r"panel 0 must be a dict with q .* and title"),
+        (dict(panels={"q": q, "title": "a"}, arm=LAB_ARM), "panels must be a list of dicts"),
+        (
+            dict(panels=[dict(q=q, title="a", ref=np.zeros(3))], arm=LAB_ARM),
+            r"panel 0 \(a\): ref must have shape \(N, 2\)",
+        ),
+        (dict(panels=[dict(q=q, title="a", target=[0.5, 0.2, 0.1])], arm=LAB_ARM), r"target must have shape \(2,\)"),
+        (dict(panels=[dict(q=q, title="a")], arm=(0.5, 0.4)), "arm must be a Planar2R"),
+        (dict(panels=[dict(q=q, title="a")], arm=LAB_ARM, frames=[0.0, 1.0]), "frames must be whole sample indices"),
+    ]
+    for kwargs, words in cases:
+        with pytest.raises(ValueError, match=words):
+            plots.planar_arm_frames(**kwargs, size=(64, 48))
+    assert plots.planar_arm_frames(
+        [dict(q=q, title="a", path=[[0.5, 0.2], [0.4, 0.2]])], LAB_ARM, size=(64, 48)
+    ).shape == (
+        3,
+        48,
+        64,
+        3,
+    )
+    plt.close("all")
+
+
 def test_planar_arm_frames_names_panels_of_different_lengths():
     from labsupport.kinematics.planar_2r import LAB_ARM
 
