@@ -292,14 +292,8 @@ def test_planar_arm_frames_names_a_panel_or_arm_of_the_wrong_kind():
     for kwargs, words in cases:
         with pytest.raises(ValueError, match=words):
             plots.planar_arm_frames(**kwargs, size=(64, 48))
-    assert plots.planar_arm_frames(
-        [dict(q=q, title="a", path=[[0.5, 0.2], [0.4, 0.2]])], LAB_ARM, size=(64, 48)
-    ).shape == (
-        3,
-        48,
-        64,
-        3,
-    )
+    right = [dict(q=q, title="a", path=[[0.5, 0.2], [0.4, 0.2]])]  # a path given as a list is fine
+    assert plots.planar_arm_frames(right, LAB_ARM, size=(64, 48)).shape == (3, 48, 64, 3)
     plt.close("all")
 
 
