@@ -46,7 +46,8 @@ class Planar2R:
         for name in ("l1", "l2"):
             value = getattr(self, name)
             if (
-                not isinstance(value, (int, float, np.floating, np.integer))
+                isinstance(value, (bool, np.bool_))
+                or not isinstance(value, (int, float, np.floating, np.integer))
                 or not np.isfinite(value)
                 or value <= 0
             ):
@@ -170,11 +171,25 @@ def jdot_qdot(q, qdot, arm: Planar2R = LAB_ARM) -> np.ndarray:
     )
 
 
+#: How far past 1 the elbow's cosine :math:`D` may be and the target still count as
+#: on the workspace's boundary (rounding of a point computed to lie on it).
+BOUNDARY_TOL = 1e-12
+
+
+def elbow_cosine(x, arm: Planar2R = LAB_ARM) -> np.ndarray:
+    r"""The elbow's cosine for target(s) ``x``, reachable where :math:`|D| \le 1`:
+
+    .. math:: D = \cos q_2 = \frac{x^2 + y^2 - l_1^2 - l_2^2}{2 l_1 l_2}
+    """
+    x = _q(x, "x")
+    return (np.sum(x**2, axis=-1) - arm.l1**2 - arm.l2**2) / (2 * arm.l1 * arm.l2)
+
+
 def is_reachable(x, arm: Planar2R = LAB_ARM) -> np.ndarray:
     r"""True where :math:`|l_1 - l_2| \le \lVert x\rVert \le l_1 + l_2` (the
-    workspace annulus)."""
-    r = np.linalg.norm(_q(x, "x"), axis=-1)
-    return (r >= arm.reach_min) & (r <= arm.reach_max)
+    workspace annulus), to the same rounding that :func:`inverse_kinematics`
+    accepts (:data:`BOUNDARY_TOL`)."""
+    return np.abs(elbow_cosine(x, arm)) <= 1 + BOUNDARY_TOL
 
 
 def inverse_kinematics(
@@ -211,8 +226,8 @@ def inverse_kinematics(
     if branch not in BRANCHES:
         raise ValueError(f"branch must be one of {BRANCHES}, got {branch!r}")
     x = _q(x, "x")
-    D = (np.sum(x**2, axis=-1) - arm.l1**2 - arm.l2**2) / (2 * arm.l1 * arm.l2)
-    outside = np.abs(D) > 1 + 1e-12
+    D = elbow_cosine(x, arm)
+    outside = np.abs(D) > 1 + BOUNDARY_TOL
     if np.any(outside):
         r = np.linalg.norm(x, axis=-1)
         bad = float(np.atleast_1d(r)[np.atleast_1d(outside)][0])
