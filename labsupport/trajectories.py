@@ -94,8 +94,9 @@ def circle_basis(normal) -> tuple[np.ndarray, np.ndarray]:
     :math:`n` is nearly vertical) and :math:`v = n \times u`, as in the lab.
     """
     n = validate.vector("normal", normal, (3,))
-    if np.linalg.norm(n) == 0:
+    if not n.any():
         raise ValueError(f"normal must be a non-zero 3-vector, got {normal!r}")
+    n = n / np.abs(n).max()  # first to the order of 1: the norm of 1e200 or 1e-320 entries overflows or vanishes
     n = n / np.linalg.norm(n)
     ref = np.array([0.0, 0.0, 1.0]) if abs(n[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
     u = np.cross(n, ref)

@@ -89,3 +89,13 @@ def test_a_sampled_reference_called_at_a_time_that_is_not_one_says_so():
         with pytest.raises(ValueError, match=words):
             ref(t)
     np.testing.assert_allclose(ref(np.array([0.0, 0.5])).pos, sinusoid(np.array([0.0, 0.5])).pos)
+
+
+def test_a_normal_of_any_size_gives_the_same_plane():
+    """A normal of 1e200 entries overflowed its norm and gave NaN; one of 1e-320 vanished."""
+    u, v = tr.circle_basis([1.0, 1.0, 0.0])
+    for scale in (1e200, 1e-320, 3.0):
+        us, vs = tr.circle_basis(np.array([1.0, 1.0, 0.0]) * scale)
+        np.testing.assert_allclose(us, u, atol=1e-15)
+        np.testing.assert_allclose(vs, v, atol=1e-15)
+    np.testing.assert_allclose([u @ u, v @ v, u @ v, u @ [1, 1, 0]], [1, 1, 0, 0], atol=1e-15)
