@@ -85,7 +85,7 @@ def mass_matrix(model: mujoco.MjModel, data: mujoco.MjData, out: np.ndarray | No
     if not out.diagonal().all():  # every joint has inertia: a zero is data never evaluated
         raise ValueError(
             "mass_matrix: the data holds no mass matrix yet (its diagonal has zeros): run "
-            "mujoco.mj_forward(model, data) after setting the state"
+            "mujoco.mj_forward(model, data) on this data after setting its state (a scratch MjData too)"
         )
     return out
 

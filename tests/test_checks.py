@@ -11,6 +11,7 @@ import sys
 import threading
 import time
 import types
+import warnings
 from functools import partial
 from pathlib import Path
 
@@ -339,6 +340,30 @@ def test_ik_that_accepts_unreachable_targets_is_told(master1):
 
         result = grade("p1_ik", ik_3r=quiet)
         assert result.score == 1 and f"returned {said} instead of raising a ValueError" in result.message, result
+        assert "no points lost" in result.message
+
+
+def test_the_out_of_reach_probe_leaks_no_numpy_warning_into_the_students_output(master1):
+    """An IK that takes arccos of a cosine past 1 printed NumPy's "invalid value encountered in
+    arccos" under the check: the check's own probe, not anything the student ran."""
+
+    def arccos_anyway(x, elbow_up=True):
+        x = np.asarray(x, float)
+        if np.linalg.norm(x - [0, 0, 1]) > 2:
+            return np.full(3, np.arccos(1.5))  # NaN, with NumPy's RuntimeWarning
+        return master1["ik_3r"](x, elbow_up)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        result = grade("p1_ik", ik_3r=arccos_anyway)
+    assert result.score == 1 and "returned NaN instead of raising" in result.message
+
+
+def test_a_start_that_is_none_because_ik_3r_is_not_pasted_says_where_to_look():
+    """q0_traj = ik_3r(x0) with TODO 1 still empty said only "q0_traj is None", and the student
+    looked for the mistake in TODO 2."""
+    result = grade("p2_start", q0_traj=None, ik_3r=lambda x, elbow_up=True: None)
+    assert "q0_traj is None: not implemented yet; if it is set as ik_3r(x0), check TODO 1 first" in result.message
 
 
 OS_MISTAKES = [
@@ -495,6 +520,30 @@ def test_an_error_outside_jdot_is_not_taken_for_an_approximate_jdot(master2, wro
             result = grade(name, seed, **{fname: law})
             assert result.score == 0 and "momentarily at rest" in result.message, result
             assert "J̇q̇ ≈" not in result.message
+
+
+def test_a_joint_velocity_in_the_task_damping_and_a_transposed_solve_are_named():
+    """ė = ẋ_d − q̇ (J forgotten) and solve(Jᵀ, ...) got a bare "got … expected …", with a note on
+    J̇q̇ that sent the student to the wrong term."""
+
+    def joint_velocity(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        J = site_jacobian(model, data, SITE)[:3]
+        a = xdd_d + Kd * (xd_d - data.qvel) + Kp * (x_d - data.site(SITE).xpos) - site_jdot_qdot(model, data, SITE)[:3]
+        return mass_matrix(model, data) @ np.linalg.solve(J, a) + bias_forces(data)
+
+    def transposed(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        J = site_jacobian(model, data, SITE)[:3]
+        a = xdd_d + Kd * (xd_d - J @ data.qvel) + Kp * (x_d - data.site(SITE).xpos)
+        return mass_matrix(model, data) @ np.linalg.solve(J.T, a - site_jdot_qdot(model, data, SITE)[:3]) + bias_forces(
+            data
+        )
+
+    for seed in (PUBLIC_SEED, OTHER_SEED):
+        result = grade("p2_osct", seed, ct_op_torque=joint_velocity)
+        assert result.score == 0.25 and "the damping compares ẋ_d with q̇" in result.message, result
+        assert "momentarily at rest" not in result.message
+        result = grade("p2_osct", seed, ct_op_torque=transposed)
+        assert result.score == 0 and "solve with J, not Jᵀ" in result.message, result
 
 
 def test_gravity_alone_for_the_bias_is_named(master2):
@@ -742,6 +791,21 @@ def test_calling_labsupports_controllers_scores_zero():
             assert result.score == 0 and result.status == FAIL, result
             assert rules.MARKER in result.message
             assert "labsupport.controllers.joint_space.ct_joint_torque" in result.message
+
+
+def test_an_error_in_the_students_code_names_its_line_and_a_six_row_jacobian_is_explained():
+    """A law that raised said only NumPy's words ("operands could not be broadcast together with
+    shapes (3,) (6,)"): no line, and no word that site_jacobian has six rows."""
+
+    def all_six_rows(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        J = site_jacobian(model, data, SITE)
+        a = xdd_d + Kd * (xd_d - J @ data.qvel) + Kp * (x_d - data.site(SITE).xpos)
+        return mass_matrix(model, data) @ np.linalg.solve(J, a) + bias_forces(data)
+
+    result = grade("p2_osct", ct_op_torque=all_six_rows)
+    assert result.score == 0
+    assert "shapes (3,) (6,) (site_jacobian" in result.message and "rows 0–2, [:3]" in result.message
+    assert "of all_six_rows: a = xdd_d + Kd * (xd_d - J @ data.qvel)" in result.message
 
 
 def test_a_law_imported_inside_the_call_is_named_not_its_module(monkeypatch):

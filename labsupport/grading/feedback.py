@@ -14,8 +14,13 @@ student's function sees exactly what it would see inside a simulation.
 
 from __future__ import annotations
 
+import os
+import re
+import sysconfig
 import time
+import traceback
 from dataclasses import dataclass, field
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -244,7 +249,9 @@ class DirectProbe(Probe):
         except StudentError:
             raise
         except Exception as err:  # the student's code may raise anything
-            raise StudentError(raised_text(fname, f"{type(err).__name__}: {err}")) from None
+            raise StudentError(
+                raised_text(fname, f"{type(err).__name__}: {str(err).rstrip()}") + where_raised(err)
+            ) from None
         finally:
             self.cpu_seconds += time.process_time() - start
         if used is not None:
@@ -263,11 +270,42 @@ SINGULAR_HINT = (
 )
 
 
+#: Why a law's arrays may not fit together: the site Jacobian's six rows where the task has three.
+JACOBIAN_ROWS_HINT = (
+    ' (site_jacobian(model, data, "end_effector") has 6 rows, translation then rotation: the position '
+    "task takes rows 0–2, [:3], and so does site_jdot_qdot)"
+)
+
+
 def raised_text(fname: str, error: str) -> str:
     """What to say when the student's ``fname`` raised ``error`` (``"TypeName: message"``), with a
     hint where the error has a common cause in this lab."""
-    hint = SINGULAR_HINT if error.startswith("LinAlgError") and "ingular" in error else ""
+    hint = ""
+    if error.startswith("LinAlgError") and "ingular" in error:
+        hint = SINGULAR_HINT
+    elif re.search(r"\(6,|\b6\)", error) and re.search(r"broadcast|dimension|aligned|shape", error):
+        hint = JACOBIAN_ROWS_HINT
     return f"{fname} raised {error}{hint}"
+
+
+@cache
+def _library_dirs() -> tuple[str, ...]:
+    """Where code that is not the student's lives: labsupport, the installed packages, Python's own."""
+    paths = sysconfig.get_paths()
+    dirs = {os.path.dirname(os.path.dirname(__file__)), paths["purelib"], paths["platlib"], paths["stdlib"]}
+    return tuple(os.path.join(os.path.realpath(d), "") for d in dirs)
+
+
+def where_raised(err: BaseException) -> str:
+    """`` (line N of <function>: <its code>)`` for the last line of the student's own code that the
+    error passed through (not NumPy's, MuJoCo's or labsupport's), or ``""``."""
+    for frame in reversed(traceback.extract_tb(err.__traceback__)):
+        if not os.path.realpath(frame.filename).startswith(_library_dirs()) and not frame.filename.startswith(
+            "<frozen"
+        ):
+            code = f": {frame.line.strip()}" if frame.line else ""
+            return f" (line {frame.lineno} of {frame.name}{code})"
+    return ""
 
 
 def _plain(value, what: str):

@@ -48,6 +48,7 @@ from labsupport.grading.common import (
     tracking_cases,
 )
 from labsupport.grading.feedback import (
+    NotImplementedYet,
     Probe,
     Result,
     StudentError,
@@ -78,6 +79,8 @@ START_TOL = 1e-4  # [m]
 #: The tracking check follows one turn of a seeded circle.
 TRACK_DURATION = 1 / FREQUENCY
 
+#: Where to look when a value computed from the student's IK is None.
+IK_NOT_PASTED = "check TODO 1 first: ik_3r returns None until your ik_3r from Problem 1 is pasted there"
 OVER_THE_TOP = (
     "the over-the-top solution: it reaches x_d with the pan angle half a turn from atan2(y, x) and the "
     "arm leaning back over its shoulder"
@@ -105,6 +108,8 @@ def check_start(probe: Probe, seed: int) -> Result:
     model = arm_model()
     try:
         q0 = as_vector("q0_traj", probe.get("q0_traj"), 3, "value")
+    except NotImplementedYet as err:  # set from ik_3r, it is None until Problem 1's IK is pasted in
+        return refused(name, label, NotImplementedYet(f"{err}; if it is set as ik_3r(x0), {IK_NOT_PASTED}"))
     except StudentError as err:
         return refused(name, label, err)
     x0 = reference(0.0).pos
@@ -182,6 +187,14 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
             law(xdd_d - Kd * edot + Kp * e - jdq), "the damping has the wrong sign: Kd (ẋ_d − J q̇).", 0.5
         ),
         "no_damping": Mistake(law(xdd_d + Kp * e - jdq), "the damping term Kd (ẋ_d − J q̇) is missing.", 0.5),
+        "joint_velocity": Mistake(
+            law(xdd_d + Kd * (xd_d - state.qdot) + Kp * e - jdq),
+            "the damping compares ẋ_d with q̇, the joints' velocity: the end effector's is ẋ = J q̇, so ė = ẋ_d − J q̇.",
+            0.25,
+        ),
+        "solve_transpose": Mistake(
+            M @ np.linalg.solve(J.T, xdd_d + fb - jdq) + h, "solve with J, not Jᵀ: q̈ = J⁻¹(...).", 0.0
+        ),
     }
 
 
@@ -218,12 +231,12 @@ def check_os_ct(probe: Probe, seed: int) -> Result:
 
 
 def _where(case: Case, still: str, text: str) -> str:
-    """``text``, said to be found at a state where the law's J̇q̇ term is zero if ``case`` is one
-    (so the student looks elsewhere than J̇q̇); ``still`` names what is at rest there and the term."""
-    if not case.still:
+    """``text``; a bare difference (no named mistake) found at a state where the law's J̇q̇ term is
+    zero says so, so that the student looks elsewhere than J̇q̇ (``still`` names what is at rest)."""
+    if not case.still or "expected [" not in text:  # a named mistake says what it is
         return text
     term = "J̇(q, q̇) q̇" if still == "the arm" else "J̇(q_d, q̇_d) q̇_d"
-    found = f"found at a test state with {still} momentarily at rest, where the law's {term} is zero"
+    found = f"at this test state {still} is momentarily at rest, so {term} is zero: the difference is not J̇q̇"
     return f"{text.rstrip('.')} ({found})."
 
 

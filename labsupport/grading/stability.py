@@ -141,8 +141,9 @@ def stiff_damping(model: mujoco.MjModel, torque: Callable, q, qdot, t: float = 0
             name = _JOINT_NAMES[j] if j < len(_JOINT_NAMES) else f"joint {j + 1}"
             return (
                 f"the damping is too stiff for the time step. {when}, the {name} has inertia "
-                f"M = {inertia:.4g} kg·m² and your controller's damping is Kd = {kd:.3g} N·m·s/rad on every "
-                f"joint, so Kd·Δt/M = {kd:.3g} × {dt:g} / {inertia:.4g} = {ratios[j]:.3g}, {above} (the controller "
+                f"M = {inertia:.4g} kg·m² and the damping of the closed loop is Kd = {kd:.3g} N·m·s/rad on "
+                "every joint (your gain, give or take what the arm's own velocity terms add at this speed), "
+                f"so Kd·Δt/M = {kd:.3g} × {dt:g} / {inertia:.4g} = {ratios[j]:.3g}, {above} (the controller "
                 "reads the speed once per step and holds its torque, so each step reverses the joint's speed and "
                 "makes it larger; the continuous law would settle). Remedies: a smaller time "
                 f"step (Δt < {limit * inertia / kd:.2g} s here), a lower Kd (below {limit * inertia / dt:.3g} "
