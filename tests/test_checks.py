@@ -1171,6 +1171,29 @@ def test_the_notebooks_own_run_of_a_wrong_spring_is_not_blamed_on_the_time_step(
     assert "too stiff" not in said and "not a sign error" not in said
 
 
+def test_a_run_whose_law_raised_says_it_once_with_the_students_line(capsys):
+    """The message "skipped, it raised TypeError: the controller raised TypeError at t = ..." said it
+    twice, and gave no line of the student's code."""
+    from labsupport.grading import as_controller, attempt
+    from labsupport.plants import load_model
+    from labsupport.sim import simulate
+
+    model, data = load_model("spatial_3r")
+
+    def ct_joint_torque(model, data, q_d, Kp, Kd):
+        return mass_matrix(model, data) @ (Kp * (q_d - data.qpos)) + bias_forces(model, data)
+
+    ctrl = as_controller(ct_joint_torque, np.zeros(3), 100.0, 20.0)
+    assert attempt("CT", lambda: simulate(model, data, ctrl, 1.0), ctrl, model) is None
+    said = capsys.readouterr().out
+    assert said.startswith("CT: skipped, the controller raised TypeError at t = 0.0000 s: ")
+    assert "it raised" not in said
+    assert (
+        "of ct_joint_torque: return mass_matrix(model, data) @ (Kp * (q_d - data.qpos)) + bias_forces(model, data)"
+        in said
+    )
+
+
 # --- what a student installs holds no answer ------------------------------------------------------------
 
 

@@ -34,6 +34,7 @@ from labsupport.grading.feedback import (
     Result,
     StudentError,
     as_vector,
+    where_raised,
 )
 from labsupport.grading.stability import Trace, explain_divergence
 from labsupport.sim import SimulationDiverged
@@ -140,5 +141,7 @@ def attempt(label: str, run: Callable, controller: StudentController | None = No
             + (reason or f"{err.reason}. Lower the gains, clip the torque, or check the signs of the law.")
         )
     except Exception as err:  # the student's code may raise anything
-        print(f"{label}: skipped, it raised {type(err).__name__}: {err}")
+        where = where_raised(err.__cause__ or err)  # simulate says the controller's error again, with its time
+        said = str(err) if str(err).startswith("the controller raised") else f"it raised {type(err).__name__}: {err}"
+        print(f"{label}: skipped, {said}{where}")
     return None
