@@ -7,6 +7,7 @@ the scores do not depend on the machine's load, and a grade is reproduced by its
 import csv
 import hashlib
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -471,6 +472,30 @@ def test_masters_get_full_marks_on_problem2(tmp_path):
     assert rows["master.ipynb"]["total"] == "10", rows["master.ipynb"]["reason"]
     assert rows["student.ipynb"]["total"] == "0"
     assert "p2_osct: not implemented yet" in rows["student.ipynb"]["reason"]
+
+
+def test_the_batch_names_the_line_of_the_students_code_that_raised(tmp_path):
+    """The batch's feedback said only NumPy's words for an error in the student's law; it now says
+    the line, as the in-notebook check does, and what the six-row Jacobian means."""
+    nb = nbformat.read(ROOT / "notebooks" / "masters" / "problem2_tracking.ipynb", as_version=4)
+    cell = next(c for c in nb.cells if c.cell_type == "code" and "def ct_op_torque" in c.source)
+    six_rows = cell.source.replace(
+        'site_jacobian(model, data, "end_effector")[:3]', 'site_jacobian(model, data, "end_effector")'
+    )
+    assert six_rows != cell.source
+    cell.source = six_rows
+    subs = tmp_path / "subs"
+    subs.mkdir()
+    nbformat.write(nb, subs / "six_rows.ipynb")
+    proc = _batch_cli("problem2", subs, tmp_path / "out", "--seed", str(SEED))
+    assert proc.returncode == 0, proc.stderr
+    reason = _grades(tmp_path / "out")["six_rows.ipynb"]["reason"]
+    assert re.search(
+        r"p2_osct: OS-CT: ct_op_torque raised ValueError: operands could not be broadcast together with shapes "
+        r"\(3,\) \(6,\) \(line \d+ of ct_op_torque: e, edot = x_d - x, xd_d - J @ qdot # Cartesian",
+        reason,
+    ), reason
+    assert "has 6 rows, translation then rotation" in reason
 
 
 def test_a_notebook_of_the_older_format_is_read_like_a_current_one():

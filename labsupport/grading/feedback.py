@@ -303,7 +303,7 @@ def where_raised(err: BaseException) -> str:
         if not os.path.realpath(frame.filename).startswith(_library_dirs()) and not frame.filename.startswith(
             "<frozen"
         ):
-            code = f": {frame.line.strip()}" if frame.line else ""
+            code = f": {' '.join(frame.line.split())}" if frame.line else ""  # one line, runs of spaces as one
             return f" (line {frame.lineno} of {frame.name}{code})"
     return ""
 

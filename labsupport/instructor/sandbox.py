@@ -91,7 +91,7 @@ class Watch:
 
 def _error_text(err: BaseException, limit: int = 300) -> str:
     """An error as the sandbox reports it: its type's name, then its message cut to ``limit``."""
-    return f"{type(err).__name__}: {str(err)[:limit]}"
+    return f"{type(err).__name__}: {str(err).rstrip()[:limit]}"
 
 
 class ThreadErrors:
@@ -195,6 +195,7 @@ def main() -> None:
     import numpy as np
     from IPython.core.interactiveshell import InteractiveShell
 
+    from labsupport.grading.feedback import where_raised
     from labsupport.grading.rules import MARKER
     from labsupport.plants import load_model
 
@@ -277,7 +278,7 @@ def main() -> None:
             except CellTimeout:
                 payload = {"timeout": watch.reason}
             except BaseException as err:  # the student's code may raise anything, SystemExit included
-                payload = thread_errors.instead_of({"raised": _error_text(err)})
+                payload = thread_errors.instead_of({"raised": _error_text(err) + where_raised(err)})
             finally:
                 watch.disarm()
                 thread_errors.clear()
