@@ -267,9 +267,10 @@ def simulate(
             limit = validate.vector(f"torque_limit (a number, or one per actuator: nu = {nu})", torque_limit, nu).copy()
         if not np.all(limit > 0):
             raise ValueError(f"torque_limit must be positive, got {torque_limit!r}")
-    lower, upper = (None, None) if limit is None else (-limit, limit)
-    if actuation is None:  # MuJoCo clamps ctrl to a limited ctrlrange: clip here, so the log holds what acts
-        lower, upper = _within_ctrlrange(model, lower, upper)
+    # MuJoCo clamps ctrl to a limited ctrlrange: a torque actuator's range is clipped here too, so the
+    # log holds what acts
+    ctrlrange = _ctrlrange(model) if actuation is None else None
+    lower, upper = _torque_bounds(limit, ctrlrange)
     clipped = np.empty(nu)
 
     # One row per step: time, qpos, qvel and ctrl, copied in one mj_getState call.
@@ -335,8 +336,8 @@ def simulate(
         t = t_ctrl = state[:, 0].copy()
     q, qdot, ctrl_log = q.copy(), qdot.copy(), ctrl_log.copy()
     tau_log = ctrl_log.copy() if actuation is None else tau_log
-    if actuation is None:
-        _warn_ctrlrange_bound(model, t_ctrl, tau_log, limit)
+    if ctrlrange is not None:
+        _warn_ctrlrange_bound(model, t_ctrl, tau_log, ctrlrange, limit)
     _check_runaway(t, q, qdot)
     if log_after_step and with_site:
         ee, ee_rot = site_poses(model, q, site_id)
@@ -404,36 +405,39 @@ def _check_torque_actuators(model: mujoco.MjModel) -> None:
         )
 
 
-def _within_ctrlrange(model: mujoco.MjModel, lower, upper):
-    """The torque bounds ``(lower, upper)`` narrowed to the limited ``ctrlrange`` of the
-    actuators (``(None, None)`` when neither bounds anything)."""
+def _ctrlrange(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(lo, hi)`` of the actuators' ``ctrlrange``, infinite where it is not limited; ``None`` when
+    no actuator's is."""
     limited = model.actuator_ctrllimited.astype(bool)
     if not limited.any():
-        return lower, upper
-    lo = np.where(limited, model.actuator_ctrlrange[:, 0], -np.inf)
-    hi = np.where(limited, model.actuator_ctrlrange[:, 1], np.inf)
-    if lower is None:
-        return lo, hi
-    return np.maximum(lower, lo), np.minimum(upper, hi)
+        return None
+    lo, hi = model.actuator_ctrlrange.T
+    return np.where(limited, lo, -np.inf), np.where(limited, hi, np.inf)
 
 
-def _warn_ctrlrange_bound(model: mujoco.MjModel, t: np.ndarray, tau: np.ndarray, limit) -> None:
+def _torque_bounds(limit, ctrlrange) -> tuple:
+    """The torque bounds ``(lower, upper)``: the symmetric ``limit`` (or none), narrowed to
+    ``ctrlrange`` (or not); ``(None, None)`` when neither bounds anything."""
+    if ctrlrange is None:
+        return (None, None) if limit is None else (-limit, limit)
+    if limit is None:
+        return ctrlrange
+    return np.maximum(-limit, ctrlrange[0]), np.minimum(limit, ctrlrange[1])
+
+
+def _warn_ctrlrange_bound(model: mujoco.MjModel, t: np.ndarray, tau: np.ndarray, ctrlrange, limit) -> None:
     """A ``RuntimeWarning`` when the actuators' ``ctrlrange`` (not ``torque_limit``) bound the
     torque: the controller asked for more than the motors give."""
-    limited = model.actuator_ctrllimited.astype(bool)
-    if not limited.any() or not len(tau):
-        return
-    lo, hi = model.actuator_ctrlrange.T
-    if limit is not None:  # where torque_limit is the tighter bound, it is the run's own limit
-        limited &= (lo > -limit) | (hi < limit)
-    bound = limited & ((tau == lo) | (tau == hi))
+    lo, hi = ctrlrange
+    tighter = np.ones(len(lo), bool) if limit is None else (lo > -limit) | (hi < limit)  # else torque_limit's doing
+    bound = tighter & ((tau == lo) | (tau == hi))
     if bound.any():
         steps = bound.any(axis=1)
-        names = [model.actuator(i).name or str(i) for i in np.flatnonzero(bound.any(axis=0))]
+        which = np.flatnonzero(bound.any(axis=0))
         warnings.warn(
             f"the actuators' ctrlrange bound the torque on {steps.sum()} of {len(tau)} steps, first at t = "
-            f"{t[np.argmax(steps)]:.4f} s (actuators {', '.join(names)}; ctrlrange "
-            f"{', '.join(f'[{lo[i]:g}, {hi[i]:g}]' for i in np.flatnonzero(bound.any(axis=0)))}): the log holds "
+            f"{t[np.argmax(steps)]:.4f} s (actuators {', '.join(model.actuator(i).name or str(i) for i in which)}; "
+            f"ctrlrange {', '.join(f'[{lo[i]:g}, {hi[i]:g}]' for i in which)}): the log holds "
             "the torque applied, not the one asked for. Ask for less (smaller gains or a gentler reference), or "
             "pass torque_limit= to make the limit part of the design",
             RuntimeWarning,
