@@ -15,7 +15,7 @@ def _samples(error) -> np.ndarray:
     """``error`` as a float array with at least one sample, or a ``ValueError``."""
     if error is None:
         raise ValueError("no error to take the RMS of (got None)")
-    if all(hasattr(error, name) for name in validate.LOG_FIELDS):
+    if validate.is_run_log(error):
         raise ValueError("the RMS is taken of an error, not of a whole Log: pass log.err (or a column of it)")
     validate.not_text("error", error)
     try:

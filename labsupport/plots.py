@@ -295,10 +295,7 @@ def circle_tracking_figure(runs: Mapping[str, object], desired_path):
     the norm of the Cartesian error in millimetres and the joint torques.
     """
     runs = _logged(runs, site=True, reference=True)
-    try:
-        path = np.asarray(desired_path, dtype=float)
-    except (TypeError, ValueError):
-        path = np.empty(0)
+    path = _floats(desired_path)
     if path.ndim != 2 or path.shape[1] < 2:
         raise ValueError(
             "desired_path must be the circle's points, an (N, 2) array such as reference(t).pos, "
@@ -376,6 +373,15 @@ def frame_indices(n_samples: int, dt: float, fps: float, speed: float = 1.0, unt
     return np.minimum(np.rint(np.arange(count) * speed / (fps * dt)).astype(int), n_samples - 1)
 
 
+def _floats(value) -> np.ndarray:
+    """``value`` as a float array, or an empty one when it is not numbers (the caller says what
+    it must be)."""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return np.empty(0)
+
+
 def _arm_panels(panels) -> list[dict]:
     """The panels of :func:`planar_arm_frames` with their arrays as float arrays, or a
     ``ValueError`` naming the panel and the entry that is missing or of the wrong shape."""
@@ -394,10 +400,7 @@ def _arm_panels(panels) -> list[dict]:
         for key, shape in (("q", "(N, 2)"), ("ref", "(N, 2)"), ("path", "(M, 2)"), ("target", "(2,)")):
             if key not in panel:
                 continue
-            try:
-                value = np.asarray(panel[key], dtype=float)
-            except (TypeError, ValueError):
-                value = np.empty(0)
+            value = _floats(panel[key])
             if value.shape[-1:] != (2,) or value.ndim != (1 if key == "target" else 2):
                 raise ValueError(
                     f"panel {i} ({panel['title']}): {key} must have shape {shape}, got {validate.short(panel[key])}"

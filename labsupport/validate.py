@@ -119,10 +119,15 @@ def not_text(name: str, value) -> None:
 LOG_FIELDS = ("t", "q", "qdot", "tau", "ctrl", "ee", "ee_rot", "ref", "err", "site")
 
 
+def is_run_log(value) -> bool:
+    """Whether ``value`` has the arrays of a ``labsupport.sim.Log``."""
+    return all(hasattr(value, name) for name in LOG_FIELDS)
+
+
 def run_log(log, site: bool = False, reference: bool = False):
     """``log`` if it has the arrays of a ``labsupport.sim.Log`` (with a site's position, and a
     reference's error, when asked for), else a ``ValueError`` that says what to pass."""
-    if not all(hasattr(log, name) for name in LOG_FIELDS):
+    if not is_run_log(log):
         raise ValueError(f"log must be the Log that labsupport.sim.simulate returns, got {type(log).__name__}")
     if site and np.shape(log.ee)[1:] != (3,):
         raise ValueError("the log has no end-effector position: pass site= to simulate to record one")
