@@ -170,7 +170,7 @@ def single_joint_panel(
             ax.axhline(sign * limit, color="tab:red", ls=":")
     ax.set(xlabel="time [s]", ylabel=ylabel, title=title)
     ax.grid(True, alpha=0.4)
-    if legend:
+    if validate.flag("legend", legend):
         ax.legend(fontsize=8)
 
 
@@ -193,6 +193,7 @@ def single_joint_figure(
     """
     quantities = [quantities] if isinstance(quantities, str) else list(quantities)  # one panel by name
     n = len(quantities)
+    side_by_side = validate.flag("side_by_side", side_by_side)
     shape, height = ((1, n), 3.4) if side_by_side else ((n, 1), 1.1 + 1.8 * n)
     fig, axes = _figure(height, *shape, sharex=not side_by_side)
     axes = axes.ravel()

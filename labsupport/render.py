@@ -193,6 +193,7 @@ def render_run(
     if not 0 < validate.number("fps", fps) <= 60:
         raise ValueError(f"fps must be in (0, 60], got {fps!r}")
     trace_step = validate.number("trace_step", trace_step, positive=True)
+    progress = validate.flag("progress", progress)
     if target_quat is not None:
         target_quat = validate.vector("target_quat (w, x, y, z)", target_quat, (4,))
         if not abs(np.linalg.norm(target_quat) - 1.0) <= 1e-6:

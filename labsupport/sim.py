@@ -149,7 +149,7 @@ def reset(
         data.qpos[:] = validate.vector("q0", q0, (model.nq,))
     if qdot0 is not None:
         data.qvel[:] = validate.vector("qdot0", qdot0, (model.nv,))
-    if forward:
+    if validate.flag("forward", forward):
         mujoco.mj_forward(model, data)
 
 
@@ -158,7 +158,7 @@ def step_count(duration: float, dt: float, lab_timing: bool = False) -> int:
     lab's ``while data.time < duration`` loop takes (time accumulated step by step in floating
     point, so 8 s at 2 ms is 4001 steps, not 4000)."""
     n = validate.steps(duration, dt)
-    if not lab_timing:
+    if not validate.flag("lab_timing", lab_timing):
         return n
     n, time = 0, 0.0
     while time < duration:
@@ -243,6 +243,8 @@ def simulate(
         )
     if actuation is None:
         _check_torque_actuators(model)
+    log_after_step = validate.flag("log_after_step", log_after_step)
+    split_step = validate.flag("split_step", split_step)
     dt = model.opt.timestep
     nsteps = step_count(duration, dt, lab_timing)  # checks the duration
     if nsteps <= 0:

@@ -71,6 +71,14 @@ def number(name: str, value, *, positive: bool = False, nonnegative: bool = Fals
 MAX_STEPS = 10_000_000
 
 
+def flag(name: str, value) -> bool:
+    """``value`` as a bool, or a ``ValueError`` for anything but ``True`` and ``False`` (NumPy's
+    included): Python would take any text, even ``"no"``, or a number as true."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False, got {short(value)}")
+    return bool(value)
+
+
 def steps(duration: float, dt: float) -> int:
     """``round(duration / dt)`` for a positive ``duration`` and time step ``dt`` (checked), or a
     ``ValueError`` past :data:`MAX_STEPS`."""

@@ -308,3 +308,15 @@ def test_planar_arm_frames_names_panels_of_different_lengths():
     with pytest.raises(ValueError, match=r"frames must be sample indices in \[0, 2\]"):
         plots.planar_arm_frames([dict(q=q, title="a")], LAB_ARM, frames=[0, 5])
     plt.close("all")
+
+
+def test_a_figure_flag_that_is_not_true_or_false_is_named():
+    """side_by_side="no" and legend="no" would otherwise act as True."""
+    t = np.linspace(0.0, 1.0, 11)
+    log = _log(t, 0.1, 1)
+    with pytest.raises(ValueError, match="side_by_side must be True or False"):
+        plots.single_joint_figure({"a": log}, ["angle"], side_by_side="no")
+    fig, ax = plt.subplots()
+    with pytest.raises(ValueError, match="legend must be True or False"):
+        plots.single_joint_panel(ax, {"a": log}, "angle", legend="no")
+    plt.close(fig)

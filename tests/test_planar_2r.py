@@ -198,3 +198,9 @@ def test_a_whole_reference_where_positions_belong_is_named():
         k2.joint_reference(Reference(ref.pos, np.zeros((3, 2)), ref.acc))
     joint = k2.joint_reference(ref)  # the right call still works, and its rates match the path's
     np.testing.assert_allclose(k2.jacobian(joint.pos) @ joint.vel, ref.vel, atol=1e-12)
+
+
+def test_clip_must_be_true_or_false():
+    """clip="no" would otherwise clip silently, and move the target."""
+    with pytest.raises(ValueError, match="clip must be True or False"):
+        k2.inverse_kinematics([0.8, 0.0], clip="no")

@@ -355,6 +355,7 @@ def test_render_names_the_cameras_and_refuses_a_reference_beyond_3d():
         ({"trace_step": None}, "trace_step must be finite"),
         ({"target_quat": (1.0, 0.0, 0.0)}, r"target_quat \(w, x, y, z\) must have shape \(4,\)"),
         ({"target_quat": (0.0, 0.0, 0.0, 0.0)}, "target_quat must be a unit quaternion"),
+        ({"progress": "no"}, "progress must be True or False"),
     ):
         with pytest.raises(ValueError, match=message):
             render.render_run(model, log, **kwargs)

@@ -719,3 +719,17 @@ def test_a_duration_past_what_memory_holds_is_refused_at_once():
         metrics.rms(log)
     with pytest.raises(ValueError, match="error must be numbers, not text"):
         metrics.rms(["1", "2"])
+
+
+@pytest.mark.parametrize("flag", ["log_after_step", "split_step", "lab_timing"])
+@pytest.mark.parametrize("value", ["no", 0, 1.0, None])
+def test_a_flag_that_is_not_true_or_false_is_named(arm, flag, value):
+    """Python reads "no" as true: the loop refuses anything but True and False (NumPy's too),
+    before the run."""
+    model, data = arm
+    with pytest.raises(ValueError, match=f"{flag} must be True or False"):
+        sim.simulate(model, data, constant([0.0, 0.0]), 0.01, **{flag: value})
+    log = sim.simulate(model, data, constant([0.0, 0.0]), 0.01, **{flag: np.bool_(False)})
+    assert len(log.t) == 5
+    with pytest.raises(ValueError, match="forward must be True or False"):
+        sim.reset(model, data, forward="no")

@@ -225,6 +225,7 @@ def inverse_kinematics(
     """
     if branch not in BRANCHES:
         raise ValueError(f"branch must be one of {BRANCHES}, got {branch!r}")
+    clip = validate.flag("clip", clip)
     x = _q(x, "x")
     D = elbow_cosine(x, arm)
     outside = np.abs(D) > 1 + BOUNDARY_TOL
