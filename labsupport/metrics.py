@@ -18,6 +18,8 @@ def _samples(error) -> np.ndarray:
     if validate.is_run_log(error):
         raise ValueError("the RMS is taken of an error, not of a whole Log: pass log.err (or a column of it)")
     validate.not_text("error", error)
+    if isinstance(error, (list, tuple)) and any(value is None for value in error):
+        raise ValueError(f"the RMS is taken of numbers, but the error holds None: {validate.short(error)}")
     try:
         error = np.asarray(error, dtype=float)
     except (TypeError, ValueError):

@@ -272,6 +272,11 @@ def render_picture(
     :func:`render_run`), with ``path``, points (K, 3) such as a circle to track, drawn as the
     blue reference trace."""
     validate.model_and_data(model, data)
+    if not data.xmat[0].any():  # the world's orientation, the identity once kinematics ran
+        raise ValueError(
+            "render_picture: the data holds no kinematics yet, so the picture would be black: run "
+            "mujoco.mj_forward(model, data) after setting its state"
+        )
     camera = _camera_id(model, camera)
     points = None if path is None else _points(path)
     renderer = make_renderer(model, width, height)

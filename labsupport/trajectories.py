@@ -246,6 +246,11 @@ def within_reach(reference: SampledReference, anchor, radius: float) -> SampledR
         raise ValueError(
             f"within_reach takes a sampled reference (trajectories.sample(...)), got {type(reference).__name__}"
         )
+    if np.ndim(reference.pos) != 2:
+        raise ValueError(
+            "within_reach takes a reference of points, positions of shape (N, d); this one samples a "
+            "single number per time"
+        )
     anchor = validate.vector("anchor", anchor, (np.shape(reference.pos)[-1],))
     radius = validate.number("radius", radius, positive=True)
     offset = reference.pos - anchor

@@ -539,6 +539,10 @@ def test_a_picture_names_a_bad_path_and_needs_a_description():
         render.render_picture(model, data, camera="front")
     with pytest.raises(ValueError):
         render.show_picture(model, data, description="arm")
+    import mujoco  # data never evaluated: a black picture before
+
+    with pytest.raises(ValueError, match="holds no kinematics yet.*mj_forward"):
+        render.render_picture(model, mujoco.MjData(model))
 
 
 def test_a_replay_keeps_the_logs_own_clock_and_a_video_needs_frames():

@@ -166,6 +166,8 @@ def test_rms_of_nothing_is_refused_with_a_reason():
             metrics.rms(empty)
         with pytest.raises(ValueError, match="no samples"):
             metrics.rms_norm(empty)
+    with pytest.raises(ValueError, match="holds None"):  # NaN before, as if the reference were not finite
+        metrics.rms([1.0, None])
 
 
 @pytest.mark.parametrize(

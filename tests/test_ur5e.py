@@ -504,6 +504,10 @@ def test_within_reach_keeps_inner_points_and_differentiates_the_outer_path():
         trajectories.within_reach(line, np.zeros(3), -1.0)
     with pytest.raises(ValueError, match=r"takes a sampled reference \(trajectories.sample\(...\)\), got function"):
         trajectories.within_reach(lambda t: line(t), np.zeros(3), 1.0)
+    # a reference of one number per time: the anchor's size used to be named as its length
+    scalar = trajectories.sample(lambda t: trajectories.Reference(0.5 + 0 * t, 0 * t, 0 * t), dt, 0.1)
+    with pytest.raises(ValueError, match="a single number per time"):
+        trajectories.within_reach(scalar, np.zeros(1), 1.0)
 
 
 def test_within_reach_keeps_the_exact_derivatives_away_from_the_pulled_back_points():
