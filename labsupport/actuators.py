@@ -51,6 +51,7 @@ class Servo:
         Raises:
             ValueError: the model's actuators are not position servos on each of its joints.
         """
+        validate.mujoco_model(model)
         kp = model.actuator_gainprm[:, 0].copy()
         bias = model.actuator_biasprm[:, :3]
         if model.nu != model.nv or not np.allclose(bias[:, 1], -kp) or np.any(kp <= 0):

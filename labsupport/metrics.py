@@ -164,10 +164,12 @@ def overdamped_poles(wn: float, zeta: float) -> tuple[float, float]:
 
     :math:`s_1` is computed as :math:`\omega_n^2 / s_2` (their product), since
     :math:`\zeta - \sqrt{\zeta^2 - 1}` cancels to 0 in floating point for a large
-    :math:`\zeta` (1e8) while the slow mode still decays.
+    :math:`\zeta` (1e8) while the slow mode still decays; and :math:`\sqrt{\zeta^2 - 1}` as
+    :math:`\sqrt{\zeta - 1}\,\sqrt{\zeta + 1}`, whose factors overflow for no finite
+    :math:`\zeta`.
     """
-    s2 = -wn * (zeta + np.sqrt(zeta**2 - 1))
-    return wn**2 / s2, s2
+    s2 = -wn * (zeta + np.sqrt(zeta - 1) * np.sqrt(zeta + 1))
+    return wn * (wn / s2), s2
 
 
 def second_order_error(t, e0, edot0, wn: float, zeta: float):

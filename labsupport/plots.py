@@ -193,6 +193,8 @@ def single_joint_figure(
     """
     quantities = [quantities] if isinstance(quantities, str) else list(quantities)  # one panel by name
     n = len(quantities)
+    if not n:
+        raise ValueError(f"name at least one quantity to plot, from {list(SINGLE_JOINT_QUANTITIES)}")
     side_by_side = validate.flag("side_by_side", side_by_side)
     shape, height = ((1, n), 3.4) if side_by_side else ((n, 1), 1.1 + 1.8 * n)
     fig, axes = _figure(height, *shape, sharex=not side_by_side)
@@ -225,6 +227,8 @@ def closed_form_figure(panels: Mapping[str, Mapping[str, tuple]], ylabel: str):
     their closed forms (lines), one panel per title; each panel maps a label to
     ``(t, closed_form, simulated)``; the panels share the y axis, with room above the highest
     curve for the legends, which name the markers too."""
+    if not isinstance(panels, Mapping) or not panels:
+        raise ValueError(f"panels must map each panel's title to its curves, got {validate.short(panels)}")
     fig, axes = _figure(3.6, 1, len(panels), sharey=True)
     for ax, (title, curves) in zip(axes[0], panels.items(), strict=True):
         for label, (t, closed_form, simulated), style, color in _styled(curves):

@@ -219,6 +219,11 @@ def test_a_one_joint_set_point_gives_one_error_curve_and_misuse_is_named():
     (line,) = ax.lines
     np.testing.assert_allclose(line.get_ydata(), np.degrees(0.5 - log.q[:, 0]))
     plt.close(fig)
+    with pytest.raises(ValueError, match="name at least one quantity"):  # matplotlib's gridspec error before
+        plots.single_joint_figure({"run": log}, [])
+    for panels in ({}, "x"):
+        with pytest.raises(ValueError, match="panels must map each panel's title to its curves"):
+            plots.closed_form_figure(panels, "y")
     fig = plots.single_joint_figure({"run": log}, "angle")
     assert len(fig.axes) == 1 and fig.axes[0].get_ylabel() == "θ [deg]"
     plt.close(fig)

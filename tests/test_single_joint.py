@@ -397,6 +397,12 @@ def test_a_band_given_in_percent_and_effort_over_backward_times_are_refused():
     assert abs((1 + narrow) * np.exp(-narrow) - 1e-9) < 1e-12
     # overdamped: the slow mode's rate wn (zeta - sqrt(zeta^2 - 1)) = wn / (2 zeta) for large zeta
     assert gains.step_settling_time(1.0, 1e8) == pytest.approx(np.log(50) * 2e8, rel=1e-3)  # was nan
+    # the poles of any finite damping ratio and frequency, with their product wn^2 and sum -2 zeta wn
+    # (zeta**2 and wn**2 overflowed past 1e154)
+    for wn, zeta in ((2.0, 1.25), (1e-100, 1e200), (3.0, 1e300)):
+        s1, s2 = metrics.overdamped_poles(wn, zeta)
+        assert s1 * (s2 / wn) == pytest.approx(wn) and s1 + s2 == pytest.approx(-2 * zeta * wn)
+    assert metrics.overdamped_poles(2.0, 1.25) == pytest.approx((-1.0, -4.0))
     with pytest.raises(ValueError, match="must increase"):
         metrics.cumulative_effort([1.0, 0.0], [1.0, 1.0])
 

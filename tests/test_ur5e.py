@@ -220,6 +220,8 @@ def test_servo_rejects_torque_motors():
     )
     with pytest.raises(ValueError, match="not position servos"):
         Servo.from_model(model)
+    with pytest.raises(ValueError, match="model must be a mujoco.MjModel, got MjData: model and data are swapped"):
+        servo_actuation(mujoco.MjData(model))
 
 
 def test_implicit_servo_damping_adds_dt_kv_to_the_inertia(ur):
