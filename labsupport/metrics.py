@@ -168,6 +168,9 @@ def overdamped_poles(wn: float, zeta: float) -> tuple[float, float]:
     :math:`\sqrt{\zeta - 1}\,\sqrt{\zeta + 1}`, whose factors overflow for no finite
     :math:`\zeta`.
     """
+    wn, zeta = _natural_frequency_and_damping(wn, zeta)
+    if not zeta > 1:
+        raise ValueError(f"overdamped poles need a damping ratio zeta > 1, got {zeta!r}")
     s2 = -wn * (zeta + np.sqrt(zeta - 1) * np.sqrt(zeta + 1))
     return wn * (wn / s2), s2
 

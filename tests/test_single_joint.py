@@ -403,6 +403,9 @@ def test_a_band_given_in_percent_and_effort_over_backward_times_are_refused():
         s1, s2 = metrics.overdamped_poles(wn, zeta)
         assert s1 * (s2 / wn) == pytest.approx(wn) and s1 + s2 == pytest.approx(-2 * zeta * wn)
     assert metrics.overdamped_poles(2.0, 1.25) == pytest.approx((-1.0, -4.0))
+    for wn, zeta, words in ((1.0, 1.0, "zeta > 1"), (np.nan, 2.0, "wn must be finite"), ([1.0, 2.0], 2.0, "single")):
+        with pytest.raises(ValueError, match=words):  # NaN poles before, or complex ones' real parts
+            metrics.overdamped_poles(wn, zeta)
     with pytest.raises(ValueError, match="must increase"):
         metrics.cumulative_effort([1.0, 0.0], [1.0, 1.0])
 
