@@ -260,6 +260,7 @@ def simulate(
     site_id = -1 if site is None else dynamics.site_id(model, site)
     if reference is not None:  # checked before the run, which would otherwise be lost to it
         _check_reference(reference, (data.time, data.time + (nsteps - 1) * dt), 3 if site_id >= 0 else 0)
+        _warn_coarse_reference(reference, dt)
     nu = model.nu
     limit = None
     if torque_limit is not None:
@@ -592,6 +593,21 @@ def _check_reference(reference, span: tuple[float, float], site_dims: int) -> No
         trajectories.evaluate(reference, last)
     except ValueError as err:
         raise ValueError(f"the reference fails at the run's last control time, t = {last:.4f} s: {err}") from None
+
+
+def _warn_coarse_reference(reference, dt: float) -> None:
+    """``RuntimeWarning`` for a sampled reference coarser than the model's step ``dt``: read at the
+    nearest sample, it stands still between samples, and the error logged against that staircase
+    measures the staircase too (Task 3's operational-space CT sampled every 10 ms: 0.55 mm RMS
+    instead of 0.32 mm)."""
+    if isinstance(reference, trajectories.SampledReference) and reference.dt > dt * (1 + 1e-9):
+        warnings.warn(
+            f"the reference is sampled every {reference.dt:g} s, more coarsely than the model's step of {dt:g} s: "
+            "between samples it stands still, and the logged error measures that staircase too. Sample it at "
+            "the model's step: trajectories.sample(f, model.opt.timestep, duration)",
+            RuntimeWarning,
+            stacklevel=3,
+        )
 
 
 def _evaluate(reference, t) -> np.ndarray:

@@ -733,3 +733,16 @@ def test_a_flag_that_is_not_true_or_false_is_named(arm, flag, value):
     assert len(log.t) == 5
     with pytest.raises(ValueError, match="forward must be True or False"):
         sim.reset(model, data, forward="no")
+
+
+def test_a_reference_sampled_more_coarsely_than_the_step_is_named(arm):
+    """A reference sampled every 10 ms on the 2 ms model stands still between samples; the run
+    goes on, with a warning that says how to sample it. At the step, or finer, nothing is said."""
+    model, data = arm
+    circle = partial(circle_2d, center=(0.5, 0.2), radius=0.15, period=6.0)
+    with pytest.warns(RuntimeWarning, match=r"sampled every 0\.01 s, more coarsely than the model's step of 0\.002 s"):
+        sim.simulate(model, data, constant([0.0, 0.0]), 0.1, site="end_effector", reference=sample(circle, 0.01, 0.2))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for dt in (model.opt.timestep, 0.001):
+            sim.simulate(model, data, constant([0.0, 0.0]), 0.1, site="end_effector", reference=sample(circle, dt, 0.2))
