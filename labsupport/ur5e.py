@@ -74,8 +74,14 @@ def load_ur5e(keyframe: str | None = HOME):
 
 def shoulder(model: mujoco.MjModel) -> np.ndarray:
     """Position [m] of the shoulder-lift axis at the ``home`` keyframe: the centre of the sphere
-    of radius :data:`REACH` that the attachment site cannot leave."""
+    of radius :data:`REACH` that the attachment site cannot leave. ``model`` is the UR5e's
+    (:func:`load_ur5e`); another model is refused by name."""
+    validate.mujoco_model(model)
+    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "shoulder_lift_joint") < 0:
+        raise ValueError(
+            "shoulder: the model has no shoulder_lift_joint; pass the UR5e's (labsupport.ur5e.load_ur5e())"
+        )
     data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, model.key(HOME).id)
+    mujoco.mj_resetDataKeyframe(model, data, validate.model_object(model, "keyframe", HOME))
     mujoco.mj_kinematics(model, data)
     return data.joint("shoulder_lift_joint").xanchor.copy()

@@ -12,6 +12,7 @@ from labsupport import metrics, trajectories, ur5e
 from labsupport.actuators import Servo, implicit_damping, servo_actuation, servo_ctrl, servo_force
 from labsupport.controllers.ur5e import LAB_GAINS, PoseArrays, PoseGains, lab_torque, pose_error, tracking_torque
 from labsupport.dynamics import mass_matrix, site_jacobian, site_jdot_qdot, task_space_inertia
+from labsupport.plants import load_model
 from labsupport.sim import simulate
 
 QUAT_D = np.array(ur5e.HOME_QUAT)
@@ -141,6 +142,14 @@ def test_shoulder_is_the_shoulder_lift_axis_and_the_reach_bounds_the_site(ur):
         data.qpos[:] = rng.uniform(-np.pi, np.pi, model.nq)
         mujoco.mj_kinematics(model, data)
         assert np.linalg.norm(data.site(ur5e.SITE).xpos - shoulder) <= ur5e.REACH
+    # another model, or data in the model's place: MuJoCo's constructor or KeyError before
+    arm, arm_data = load_model("planar_2r")
+    with pytest.raises(ValueError, match=r"no shoulder_lift_joint; pass the UR5e's"):
+        ur5e.shoulder(arm)
+    with pytest.raises(ValueError, match="model must be a mujoco.MjModel, got MjData"):
+        ur5e.shoulder(data)
+    with pytest.raises(ValueError, match="model must be a mujoco.MjModel, got MjData"):
+        PoseArrays.for_model(arm_data)
 
 
 # ---------------------------------------------------------------------------------------

@@ -101,6 +101,7 @@ class PoseArrays:
 
     @classmethod
     def for_model(cls, model: mujoco.MjModel) -> PoseArrays:
+        validate.mujoco_model(model)
         nv = model.nv
         return cls(
             J=np.zeros((6, nv)),
