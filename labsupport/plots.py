@@ -19,7 +19,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from labsupport import validate
-from labsupport.kinematics.planar_2r import Planar2R, elbow_position, forward_kinematics
+from labsupport.kinematics.planar_2r import checked_arm, elbow_position, forward_kinematics
 from labsupport.metrics import cumulative_effort
 
 #: Successive curves of a panel differ in line style or marker as well as in colour (WCAG 2.1,
@@ -440,8 +440,7 @@ def planar_arm_frames(
         ``(F, height, width, 3)`` uint8 array, for :func:`mediapy.show_video`.
     """
     panels = _arm_panels(panels)
-    if not isinstance(arm, Planar2R):
-        raise ValueError(f"arm must be a Planar2R (for example planar_2r.LAB_ARM), got {validate.short(arm)}")
+    checked_arm(arm)
     width, height = validate.vector("size (width, height)", size, (2,))
     if not (width == int(width) and height == int(height) and width > 0 and height > 0) or width % 2 or height % 2:
         raise ValueError(f"size must be two positive even whole numbers of pixels (H.264), got {size}")

@@ -204,3 +204,22 @@ def test_clip_must_be_true_or_false():
     """clip="no" would otherwise clip silently, and move the target."""
     with pytest.raises(ValueError, match="clip must be True or False"):
         k2.inverse_kinematics([0.8, 0.0], clip="no")
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda arm: k2.forward_kinematics([0.1, 0.2], arm),
+        lambda arm: k2.elbow_position([0.1, 0.2], arm),
+        lambda arm: k2.jacobian([0.1, 0.2], arm),
+        lambda arm: k2.jdot_qdot([0.1, 0.2], [0.3, 0.4], arm),
+        lambda arm: k2.is_reachable([0.5, 0.2], arm),
+        lambda arm: k2.inverse_kinematics([0.5, 0.2], arm),
+        lambda arm: k2.sample_annulus(1, arm),
+    ],
+)
+def test_an_arm_that_is_not_a_planar2r_is_named(call):
+    """Link lengths given as a tuple failed on ``arm.l1`` (AttributeError)."""
+    with pytest.raises(ValueError, match=r"arm must be a Planar2R, such as Planar2R\(l1=0.5, l2=0.4\)"):
+        call((0.5, 0.4))
+    call(k2.Planar2R(0.5, 0.4))

@@ -71,6 +71,17 @@ class Planar2R:
 LAB_ARM = Planar2R()
 
 
+def checked_arm(arm) -> Planar2R:
+    """``arm`` if it is a :class:`Planar2R`, else a ``ValueError`` that says what to
+    pass (a tuple of lengths used to fail on ``arm.l1``)."""
+    if not isinstance(arm, Planar2R):
+        raise ValueError(
+            "arm must be a Planar2R, such as Planar2R(l1=0.5, l2=0.4) or LAB_ARM, "
+            f"got {validate.short(arm)}"
+        )
+    return arm
+
+
 def _q(q, name="q") -> np.ndarray:
     """``q`` (or a position ``x``) as a float array of shape ``(..., 2)`` with finite
     entries, or a ``ValueError`` naming it."""
@@ -105,7 +116,7 @@ def forward_kinematics(q, arm: Planar2R = LAB_ARM) -> np.ndarray:
     >>> print(forward_kinematics([np.pi / 2, -np.pi / 2]))
     [0.4 0.5]
     """
-    q = _q(q)
+    q, arm = _q(q), checked_arm(arm)
     q1, q12 = q[..., 0], q[..., 0] + q[..., 1]
     return np.stack(
         [
@@ -118,7 +129,7 @@ def forward_kinematics(q, arm: Planar2R = LAB_ARM) -> np.ndarray:
 
 def elbow_position(q, arm: Planar2R = LAB_ARM) -> np.ndarray:
     r"""Position of joint 2, :math:`(l_1 c_1, l_1 s_1)`, shape ``(..., 2)``."""
-    q = _q(q)
+    q, arm = _q(q), checked_arm(arm)
     return arm.l1 * np.stack([np.cos(q[..., 0]), np.sin(q[..., 0])], axis=-1)
 
 
@@ -138,7 +149,7 @@ def jacobian(q, arm: Planar2R = LAB_ARM) -> np.ndarray:
     >>> print(f"{np.linalg.det(jacobian(q)):.6f} {0.5 * 0.4 * np.sin(1.0):.6f}")
     0.168294 0.168294
     """
-    q = _q(q)
+    q, arm = _q(q), checked_arm(arm)
     q1, q12 = q[..., 0], q[..., 0] + q[..., 1]
     s1, c1, s12, c12 = np.sin(q1), np.cos(q1), np.sin(q12), np.cos(q12)
     row1 = np.stack([-arm.l1 * s1 - arm.l2 * s12, -arm.l2 * s12], axis=-1)
@@ -159,7 +170,7 @@ def jdot_qdot(q, qdot, arm: Planar2R = LAB_ARM) -> np.ndarray:
     (the centripetal accelerations of the two links), so that
     :math:`\ddot x = J\ddot q + \dot J\dot q`.
     """
-    q, qdot = _q(q), _q(qdot, "qdot")
+    q, qdot, arm = _q(q), _q(qdot, "qdot"), checked_arm(arm)
     q1, q12 = q[..., 0], q[..., 0] + q[..., 1]
     w1sq, w12sq = qdot[..., 0] ** 2, (qdot[..., 0] + qdot[..., 1]) ** 2
     return -np.stack(
@@ -181,7 +192,7 @@ def elbow_cosine(x, arm: Planar2R = LAB_ARM) -> np.ndarray:
 
     .. math:: D = \cos q_2 = \frac{x^2 + y^2 - l_1^2 - l_2^2}{2 l_1 l_2}
     """
-    x = _q(x, "x")
+    x, arm = _q(x, "x"), checked_arm(arm)
     return (np.sum(x**2, axis=-1) - arm.l1**2 - arm.l2**2) / (2 * arm.l1 * arm.l2)
 
 
@@ -324,6 +335,7 @@ def sample_annulus(
             f"or a whole-number seed, got {rng!r}"
         ) from None
     margin = validate.number("margin", margin, nonnegative=True)
+    arm = checked_arm(arm)
     lo, hi = arm.reach_min + margin, arm.reach_max - margin
     if not lo < hi:
         raise ValueError(
