@@ -116,6 +116,11 @@ EXPECTED = {
             "p1_ct: CT: labsupport.controllers.joint_space.ct_joint_torque is off limits",
         ],
     ),
+    "copies_law_source.ipynb": (  # the law's source copied with inspect and run with exec: no import to see
+        {"p1_ik": 3, "p1_pd": 2},
+        "graded",
+        ["p1_ct: CT: labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO"],
+    ),
     # attacks on the grader, from notebooks that implement nothing: any point is a successful attack
     "escapes.ipynb": ({}, "graded", NOTHING),
     "writes_everywhere.ipynb": ({}, "graded", ["wrote files: /home/student/junk.txt"]),
@@ -510,3 +515,29 @@ def test_a_notebook_of_the_older_format_is_read_like_a_current_one():
     assert [src for _, src in read_cells(older)] == code
     with pytest.raises(ValueError, match="nested too deeply"):
         read_cells(b"[" * 100000 + b"]" * 100000)
+
+
+def test_a_stubs_source_copied_with_inspect_and_run_with_exec_still_refuses(tmp_path, monkeypatch):
+    """The sandbox's stand-in of a forbidden module: a copy of a law's source, run with ``exec``,
+    raises the rule's message (an IndentationError before: the stub's functions were nested), as
+    do an attribute the real module does not define at its top and a star import."""
+    import importlib
+    import inspect
+
+    from labsupport.grading import rules
+
+    src = isolation.stub_source("fake_laws", [], rules.forbidden_message("@@NAME@@"), ["ct_joint_torque", "LAB_ARM"])
+    (tmp_path / "fake_laws.py").write_text(src, encoding="utf-8")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    laws = importlib.import_module("fake_laws")
+    copied: dict = {}
+    exec(inspect.getsource(laws.ct_joint_torque), {}, copied)
+    for call in (copied["ct_joint_torque"], laws.ct_joint_torque, laws.LAB_ARM, laws.Reference):
+        with pytest.raises(RuntimeError) as err:
+            call(1, 2, q_d=3)
+        assert rules.is_forbidden_message(err.value) and "fake_laws." in str(err.value)
+    with pytest.raises(RuntimeError, match="fake_laws.ct_joint_torque is off limits"):
+        copied["ct_joint_torque"]()
+    star: dict = {}
+    exec("from fake_laws import *", star)
+    assert {"ct_joint_torque", "LAB_ARM"} <= set(star)

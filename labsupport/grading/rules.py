@@ -21,7 +21,8 @@ The batch grader decides. The in-notebook watch runs in the student's own proces
 student set on hiding a call can: turn the watch off and on again within the call, run the
 borrowed law from a thread started before the call, or ``exec`` a law's source copied out
 with ``inspect``. In the sandbox none of these finds a law to run, and the TODO still scores
-zero (an ``exec`` of copied source, with that code's own error as the reason).
+zero with the same reason: the source ``inspect`` finds there is the stub's, which raises it
+(``tests/hostile/copies_law_source.ipynb``).
 """
 
 from __future__ import annotations

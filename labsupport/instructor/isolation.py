@@ -117,7 +117,18 @@ def public_names(source: str) -> list[str]:
 def stub_source(module: str, submodules: list[str], message_template: str, names: list[str] = ()) -> str:
     """A forbidden module's stand-in: every attribute is a function raising the rule's message;
     ``__all__`` lists the real module's ``names``, so ``from module import *`` takes such a
-    function for each (and a call to it gets the rule's reason, not a ``NameError``)."""
+    function for each (and a call to it gets the rule's reason, not a ``NameError``).
+
+    Each of ``names`` is a function of its own at the top of the stub, with its message written
+    out: its source, which ``inspect.getsource`` gives a submission that copies a law's code to
+    run it with ``exec``, is then that same refusal, and the copy's call gets the rule's reason
+    (a nested function's source is indented, and ``exec`` of it used to raise
+    ``IndentationError``)."""
+    named = "".join(
+        f"\n\ndef {name}(*args, **kwargs):\n"
+        f"    raise RuntimeError({message_template.replace('@@NAME@@', f'{module}.{name}')!r})\n"
+        for name in sorted(set(names) - set(submodules))
+    )
     return f'''"""{module} is not available while a submission is graded (see the grader's notes)."""
 
 import importlib as _importlib
@@ -138,7 +149,7 @@ def __getattr__(name):
 
     forbidden.__name__ = forbidden.__qualname__ = name
     return forbidden
-'''
+{named}'''
 
 
 def write_student_package(dest: Path, checkout: Path = CHECKOUT) -> list[str]:

@@ -118,6 +118,18 @@ BORROWED_CT = """def ct_joint_torque(model, data, q_d, Kp, Kd):
     from labsupport.controllers.joint_space import ct_joint_torque as task3_ct
     return task3_ct(model, data, q_d, np.zeros(3), np.zeros(3), Kp, Kd)"""
 
+#: The borrowing without an import of the law: its source copied with ``inspect`` and run with
+#: ``exec``, so that the copy's code is not the library's.
+COPIED_CT = """import inspect
+from labsupport.controllers import joint_space
+
+_copied = {}
+exec(inspect.getsource(joint_space.ct_joint_torque), vars(joint_space) | {}, _copied)
+
+
+def ct_joint_torque(model, data, q_d, Kp, Kd):
+    return _copied["ct_joint_torque"](model, data, q_d, np.zeros(3), np.zeros(3), Kp, Kd)"""
+
 #: The same borrowing, hidden: the IK solved in a worker thread (whose error the thread swallows)
 #: and the torque computed only when the grader reads the returned value as numbers.
 HIDDEN_IK = """def ik_3r(x, elbow_up=True):
@@ -387,6 +399,7 @@ def hostile() -> dict[str, object]:
     out["borrows_task_code.ipynb"] = replace_function(nb, "ct_joint_torque", BORROWED_CT)
     nb = replace_function(m(), "ik_3r", HIDDEN_IK)
     out["hides_borrowed_code.ipynb"] = replace_function(nb, "ct_joint_torque", HIDDEN_CT)
+    out["copies_law_source.ipynb"] = replace_function(m(), "ct_joint_torque", COPIED_CT)
     nb = m()
     imports = nb.cells.pop(_imports(nb))
     nb.cells.insert(_defining(nb, "ik_3r") + 1, imports)
