@@ -73,7 +73,8 @@ MAX_STEPS = 10_000_000
 
 def flag(name: str, value) -> bool:
     """``value`` as a bool, or a ``ValueError`` for anything but ``True`` and ``False`` (NumPy's
-    included): Python would take any text, even ``"no"``, or a number as true."""
+    included): Python reads any text but ``""`` as true, even ``"no"``, and a number by whether it
+    is zero."""
     if not isinstance(value, (bool, np.bool_)):
         raise ValueError(f"{name} must be True or False, got {short(value)}")
     return bool(value)
