@@ -16,7 +16,7 @@ import time
 from functools import partial
 
 import mujoco
-from timing import best_times, law_budget_us
+from timing import best_times, law_budget_us, versions
 
 import labsupport  # noqa: F401  (before mujoco)
 from labsupport import gains, sim, trajectories
@@ -105,7 +105,7 @@ def main() -> dict:
     times = best_times(loops, REPEATS)
     bare = nsteps / times["bare"]
     results = {"bare mj_step [steps/s]": bare}
-    print(f"2R planar arm, {nsteps} steps of {model.opt.timestep * 1e3:.0f} ms (RK4), best of {REPEATS}")
+    print(f"2R planar arm, {nsteps} steps of {model.opt.timestep * 1e3:.0f} ms (RK4), best of {REPEATS}; {versions()}")
     print(f"  bare mj_step            : {bare:10.0f} steps/s  ({1e6 / bare:5.1f} us/step)")
     for name, make in makers.items():
         rate = nsteps / times[name]

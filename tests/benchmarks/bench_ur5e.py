@@ -15,7 +15,7 @@ import labsupport  # noqa: F401  (chooses the GL backend before mujoco is import
 # isort: split
 import mujoco
 import numpy as np
-from timing import best_times, law_budget_us, seconds
+from timing import best_times, law_budget_us, seconds, versions
 
 from labsupport import render, trajectories, ur5e
 from labsupport.actuators import Servo, implicit_damping, servo_actuation
@@ -83,7 +83,7 @@ def main() -> dict:
     rates = {name: n / t for name, t in times.items()}
     ratios = {name: rates[name] / rates["bare"] for name in loops}
 
-    print(f"UR5e, {n} steps of {dt * 1e3:.0f} ms ({DURATION:.0f} s simulated)")
+    print(f"UR5e, {n} steps of {dt * 1e3:.0f} ms ({DURATION:.0f} s simulated); {versions()}")
     print(f"  bare mj_step                          {rates['bare']:9.0f} steps/s  {1e6 / rates['bare']:6.1f} us/step")
     for name, label in (
         ("tracking", "tracking law (split step)"),

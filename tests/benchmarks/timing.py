@@ -10,8 +10,19 @@ the process is first pinned to one core; the ratios then repeat to within a few 
 from __future__ import annotations
 
 import os
+import platform
+import sys
 import time
 from collections.abc import Callable
+
+import mujoco
+import numpy as np
+
+
+def versions() -> str:
+    """What the ratios depend on besides the machine: the interpreter and the libraries the laws
+    call (the same code measures lower on Python 3.12, Colab's, than on 3.11, for one)."""
+    return f"{platform.machine()}, Python {sys.version.split()[0]}, MuJoCo {mujoco.__version__}, NumPy {np.__version__}"
 
 
 def pin_to_one_core() -> int | None:
