@@ -17,6 +17,7 @@ from pathlib import Path
 
 import nbformat
 import pytest
+from hostile.build import unusual_problem2
 from nbclient import NotebookClient
 
 from labsupport.grading import PUBLIC_SEED
@@ -121,6 +122,8 @@ EXPECTED = {
         "graded",
         ["p1_ct: CT: labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO"],
     ),
+    # right answers written unusually (SciPy's least squares for the IK, gain matrices, MuJoCo's mj_mulM)
+    "unusual_but_right.ipynb": (FULL, "graded", ["all checks passed"]),
     # attacks on the grader, from notebooks that implement nothing: any point is a successful attack
     "escapes.ipynb": ({}, "graded", NOTHING),
     "writes_everywhere.ipynb": ({}, "graded", ["wrote files: /home/student/junk.txt"]),
@@ -466,15 +469,20 @@ def test_the_sandbox_sees_no_checkout_and_no_forbidden_module(tmp_path):
     assert "labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO" in lines[4]
 
 
-def test_masters_get_full_marks_on_problem2(tmp_path):
+def test_masters_and_unusual_right_answers_get_full_marks_on_problem2(tmp_path):
+    """The master, and the same answers written another right way (a SciPy IK, J̇q̇ by finite
+    differences, explicit inverses: ``hostile/build.py``), score full marks in the sandbox."""
     subs = tmp_path / "subs"
     subs.mkdir()
-    shutil.copy(ROOT / "notebooks" / "masters" / "problem2_tracking.ipynb", subs / "master.ipynb")
+    master = ROOT / "notebooks" / "masters" / "problem2_tracking.ipynb"
+    shutil.copy(master, subs / "master.ipynb")
     shutil.copy(ROOT / "notebooks" / "problem2_tracking.ipynb", subs / "student.ipynb")
+    nbformat.write(unusual_problem2(nbformat.read(master, as_version=4)), subs / "unusual.ipynb")
     proc = _batch_cli("problem2", subs, tmp_path / "out")
     assert proc.returncode == 0, proc.stderr
     rows = _grades(tmp_path / "out")
-    assert rows["master.ipynb"]["total"] == "10", rows["master.ipynb"]["reason"]
+    for name in ("master.ipynb", "unusual.ipynb"):
+        assert rows[name]["total"] == "10", (name, rows[name]["reason"])
     assert rows["student.ipynb"]["total"] == "0"
     assert "p2_osct: not implemented yet" in rows["student.ipynb"]["reason"]
 

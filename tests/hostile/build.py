@@ -5,7 +5,9 @@
 
 Each is the master (a correct notebook) or the student notebook (nothing implemented) with one
 misbehaviour added, so a score different from what the test suite expects means either a
-grading mistake or a successful attack. Rebuild after changing a Problem 1 notebook.
+grading mistake or a successful attack; one, ``unusual_but_right``, is the master's answers
+written another right way, which must keep full marks. Rebuild after changing a Problem 1
+notebook.
 
 The memoriser holds the answers of the *public* in-notebook checks (``PUBLIC_SEED``), recorded
 here by running the checks against the master's functions.
@@ -157,6 +159,89 @@ HIDDEN_CT = """class Deferred:
 
 def ct_joint_torque(model, data, q_d, Kp, Kd):
     return Deferred(model, data, np.array(q_d, dtype=float), np.zeros(3), np.zeros(3), Kp, Kd)"""
+
+#: Right answers written as a student may, unlike the master: a numerical IK (SciPy's bounded
+#: least squares on MuJoCo's forward kinematics, the bounds keeping the elbow on the branch
+#: asked), the PD with gain matrices, and the computed torque through MuJoCo's own product
+#: M(q) v (``mj_mulM``) and ``qfrc_bias``. They must score full marks in the sandbox too.
+UNUSUAL_IK = """from scipy.optimize import least_squares
+
+L1, L2, L3 = 1.0, 1.0, 1.0   # link lengths [m]
+fk_data = mujoco.MjData(model)   # scratch for forward kinematics
+
+
+def tip(q):
+    fk_data.qpos[:] = q
+    mujoco.mj_kinematics(model, fk_data)
+    return fk_data.site("end_effector").xpos.copy()
+
+
+def ik_3r(x, elbow_up=True):
+    x = np.asarray(x, dtype=float)
+    q1 = np.arctan2(x[1], x[0])
+    if elbow_up:   # theta = q3 + pi/2 in [0, pi]
+        bounds, guess = ([-np.pi, -np.pi / 2], [np.pi, np.pi / 2]), [0.0, 0.0]
+    else:          # theta in [-pi, 0]
+        bounds, guess = ([-np.pi, -3 * np.pi / 2], [np.pi, -np.pi / 2]), [0.0, -np.pi]
+    fit = least_squares(lambda q23: tip([q1, *q23]) - x, guess, bounds=bounds,
+                        xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    if np.linalg.norm(fit.fun) > 1e-9:
+        raise ValueError(f"target {x} is out of reach")
+    return (np.array([q1, *fit.x]) + np.pi) % (2 * np.pi) - np.pi"""
+
+UNUSUAL_PD = """def pd_torque(model, data, q_d, Kp, Kd):
+    K_p, K_d = np.diag(np.broadcast_to(Kp, 3)), np.diag(np.broadcast_to(Kd, 3))
+    return K_p @ (np.asarray(q_d) - data.qpos) - K_d @ data.qvel"""
+
+UNUSUAL_CT = """def ct_joint_torque(model, data, q_d, Kp, Kd):
+    qddot_cmd = Kp * (np.asarray(q_d) - data.qpos) - Kd * data.qvel
+    M_qddot = np.zeros(model.nv)
+    mujoco.mj_mulM(model, data, M_qddot, qddot_cmd)   # M(q) qddot_cmd
+    return M_qddot + data.qfrc_bias"""
+
+#: Problem 2's laws written unusually: J̇q̇ by finite differences along the motion (on a scratch
+#: MjData, so that both Jacobians belong to the same instant), explicit inverses in place of
+#: solves, and the IK above.
+UNUSUAL_OS_CT = """fd_data = mujoco.MjData(model)   # scratch for finite differences
+
+
+def jacobian_at(q):
+    fd_data.qpos[:] = q
+    mujoco.mj_kinematics(model, fd_data)
+    mujoco.mj_comPos(model, fd_data)
+    return site_jacobian(model, fd_data, "end_effector")[:3].copy()
+
+
+def ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+    q, qdot, eps = data.qpos, data.qvel, 1e-6
+    J = jacobian_at(q)
+    jdot_qdot = (jacobian_at(q + eps * qdot) - J) / eps @ qdot
+    a = xdd_d + Kd * (xd_d - J @ qdot) + Kp * (x_d - tip(q)) - jdot_qdot
+    return mass_matrix(model, data) @ (np.linalg.inv(J) @ a) + data.qfrc_bias"""
+
+UNUSUAL_IK_CT = """def ct_ik_joint_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+    eps = 1e-6
+    q_d = ik_3r(x_d, elbow_up=True)
+    J_inv = np.linalg.inv(jacobian_at(q_d))
+    qd_d = J_inv @ xd_d
+    jdot_qdot_d = (jacobian_at(q_d + eps * qd_d) - jacobian_at(q_d)) / eps @ qd_d
+    qdd_d = J_inv @ (xdd_d - jdot_qdot_d)
+    v = qdd_d + Kd * (qd_d - data.qvel) + Kp * (q_d - data.qpos)
+    return mass_matrix(model, data) @ v + bias_forces(data)"""
+
+
+def unusual_problem2(master) -> nbformat.NotebookNode:
+    """Problem 2's master (a notebook) with its three functions written unusually; the start
+    cell keeps the master's solution, its markers dropped as in a student's copy."""
+    nb = copy.deepcopy(master)
+    for fname, source in (("ik_3r", UNUSUAL_IK), ("ct_op_torque", UNUSUAL_OS_CT), ("ct_ik_joint_torque", UNUSUAL_IK_CT)):
+        replace_function(nb, fname, source)
+    for cell in nb.cells:
+        if cell.cell_type == "code" and "BEGIN SOLUTION" in cell.source:
+            lines = cell.source.splitlines()
+            cell.source = "\n".join(ln for ln in lines if "SOLUTION" not in ln and "# STUDENT:" not in ln)
+    return nb
+
 
 #: Rewrites the sandbox's reports as they leave the notebook's process, to plant notes that
 #: read like the grader's own.
@@ -400,6 +485,9 @@ def hostile() -> dict[str, object]:
     nb = replace_function(m(), "ik_3r", HIDDEN_IK)
     out["hides_borrowed_code.ipynb"] = replace_function(nb, "ct_joint_torque", HIDDEN_CT)
     out["copies_law_source.ipynb"] = replace_function(m(), "ct_joint_torque", COPIED_CT)
+    nb = replace_function(m(), "ik_3r", UNUSUAL_IK)
+    nb = replace_function(nb, "pd_torque", UNUSUAL_PD)
+    out["unusual_but_right.ipynb"] = replace_function(nb, "ct_joint_torque", UNUSUAL_CT)
     nb = m()
     imports = nb.cells.pop(_imports(nb))
     nb.cells.insert(_defining(nb, "ik_3r") + 1, imports)
