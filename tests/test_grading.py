@@ -17,7 +17,7 @@ from pathlib import Path
 
 import nbformat
 import pytest
-from hostile.build import unusual_problem2
+from hostile.build import MASTER, _imports, insert_after, load, unusual_problem2
 from nbclient import NotebookClient
 
 from labsupport.grading import PUBLIC_SEED
@@ -394,6 +394,23 @@ def test_wall_clock_backstop_asks_for_a_regrade_instead_of_a_zero(tmp_path):
     assert rows[0]["status"] == "timed out: regrade" and rows[0]["scores"] == {}
     row = _grades(tmp_path / "out")["master.ipynb"]
     assert row["total"] == "" and row["p1_ik"] == ""
+
+
+def test_cells_past_their_cpu_in_all_leave_no_check_graded(tmp_path):
+    """Each cell within its own limit, together past the cells' limit in all (and its grace): the
+    notebook stops there, and no check is graded, not even those of the functions the master
+    defined before; the reason says why (README: "Cells that use up the 120 s ...")."""
+    nb = load(MASTER)
+    burn = "import time\nstart = time.process_time()\nwhile time.process_time() - start < 2.5:\n    pass"
+    for k in range(3):  # 7.5 s of CPU after the imports, past run + GRACE = 2 + 5 s
+        nb = insert_after(nb, _imports(nb) + k, f"{burn}  # burn {k + 1}")
+    subs = tmp_path / "subs"
+    subs.mkdir()
+    nbformat.write(nb, subs / "burns.ipynb")
+    budget = Budget(cell=4, run=2, call=3, check=30, idle=4, run_idle=12, check_idle=4)
+    rows = run_batch(subs, ROOT / "tests" / "autograder" / "problem1.json", tmp_path / "out", jobs=1, budget=budget)
+    assert rows[0]["status"] == "graded" and set(rows[0]["scores"].values()) == {0.0}, rows[0]
+    assert rows[0]["notes"] == ["the notebook's cells did not finish: it used more than 2 s of CPU time"]
 
 
 def test_refuses_without_bubblewrap(tmp_path):
