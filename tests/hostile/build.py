@@ -201,7 +201,8 @@ UNUSUAL_CT = """def ct_joint_torque(model, data, q_d, Kp, Kd):
 
 #: Problem 2's laws written unusually: J̇q̇ by finite differences along the motion (on a scratch
 #: MjData, so that both Jacobians belong to the same instant), explicit inverses in place of
-#: solves, and the IK above.
+#: solves, the end effector placed by the IK's forward kinematics `tip` at the current q, and the
+#: IK above.
 UNUSUAL_OS_CT = """fd_data = mujoco.MjData(model)   # scratch for finite differences
 
 
