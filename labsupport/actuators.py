@@ -100,7 +100,7 @@ def servo_ctrl(servo: Servo, q, qdot, tau, out: np.ndarray | None = None) -> np.
         u += tau  # k_v qdot + tau
         u /= servo.kp  # (k_v qdot + tau) / k_p
         u += q  # q + (k_v qdot + tau) / k_p
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError, AttributeError):
         raise _bad_inputs("servo_ctrl", servo, q=q, qdot=qdot, tau=tau) from None
     return u
 
@@ -115,7 +115,7 @@ def servo_force(servo: Servo, q, qdot, ctrl) -> np.ndarray:
     try:
         u = np.clip(np.asarray(ctrl, dtype=float), servo.ctrl_lo, servo.ctrl_hi)
         f = servo.kp * (u - q) - servo.kv * np.asarray(qdot, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError, AttributeError):
         f = None
     if f is None or not np.isfinite(f).all():  # None becomes NaN in an array
         raise _bad_inputs("servo_force", servo, q=q, qdot=qdot, ctrl=ctrl)
@@ -124,6 +124,8 @@ def servo_force(servo: Servo, q, qdot, ctrl) -> np.ndarray:
 
 def _bad_inputs(function: str, servo: Servo, **inputs) -> ValueError:
     """The error for inputs NumPy could not combine with the servos: what each one was."""
+    if not isinstance(servo, Servo):
+        return ValueError(f"{function} takes the servos first, Servo.from_model(model), got {validate.short(servo)}")
     nu, names = len(servo.kp), list(inputs)
     got = ", ".join(
         f"{name} of shape {np.shape(value)}" if isinstance(value, np.ndarray) else f"{name} = {validate.short(value)}"

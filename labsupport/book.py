@@ -65,7 +65,7 @@ def show_law(fn: Callable) -> None:
 def text_alternative(alt, what: str = "a figure") -> str:
     """``alt`` with its white space collapsed, or a ``ValueError`` when it cannot be a text
     alternative (WCAG 2.1, 1.1.1): fewer than :data:`MIN_ALT_WORDS` words, or a file name."""
-    text = " ".join(str(alt or "").split())
+    text = " ".join(alt.split()) if isinstance(alt, str) else ""
     if len(re.findall(r"\w+", text)) < MIN_ALT_WORDS or re.search(r"\.(png|jpe?g|svg|mp4)$", text, re.IGNORECASE):
         raise ValueError(
             f"{what} needs a text alternative of at least {MIN_ALT_WORDS} words that says what it shows, got {alt!r}"

@@ -154,7 +154,10 @@ def solve_mass(model: mujoco.MjModel, data: mujoco.MjData, rhs: np.ndarray) -> n
     the rows of the result are those of :math:`J M^{-1}` (:math:`M` is symmetric).
     """
     _made_for(model, data)
-    y = np.ascontiguousarray(rhs, dtype=float)
+    try:
+        y = np.ascontiguousarray(rhs, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"solve_mass: rhs must be numbers, got {validate.short(rhs)}") from None
     x = np.empty_like(y)
     try:
         if y.ndim == 1:  # MuJoCo solves for rows
@@ -252,8 +255,13 @@ def jacobian_solve(
     front: in the control loop it would cost more than all the rest of this function's checks.
     ``out`` is an optional preallocated ``(nv,)`` result.
     """
-    J = np.ascontiguousarray(J, dtype=float)
-    rhs = np.ascontiguousarray(rhs, dtype=float)
+    try:
+        J = np.ascontiguousarray(J, dtype=float)
+        rhs = np.ascontiguousarray(rhs, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(
+            f"jacobian_solve: J and rhs must be numbers, got J = {validate.short(J)} and rhs = {validate.short(rhs)}"
+        ) from None
     d, nv = J.shape if J.ndim == 2 else (-1, -1)
     if rhs.shape != (d,) or d > nv:
         raise ValueError(
@@ -302,12 +310,14 @@ def task_space_inertia(model: mujoco.MjModel, data: mujoco.MjData, jac: np.ndarr
     :math:`J^\top \Lambda = M J^{-1}`.
     """
     damping = validate.number("damping", damping, nonnegative=True)
-    minv_jt = solve_mass(model, data, jac).T  # M^{-1} J^T, shape (nv, k)
-    jac = np.asarray(jac, dtype=float)
-    if not np.isfinite(jac).all():
+    validate.mujoco_model(model)
+    jac = validate.vector("task_space_inertia: jac", jac, None)
+    if jac.ndim != 2 or jac.shape[1] != model.nv:  # one row is (1, nv): a 1-D J would be read as rows
         raise ValueError(
-            f"task_space_inertia: the Jacobian has entries that are not finite (NaN or inf): {jac.tolist()}"
+            f"task_space_inertia: jac must be a Jacobian of shape (k, {model.nv}), one row per task "
+            f"coordinate, got shape {jac.shape}"
         )
+    minv_jt = solve_mass(model, data, jac).T  # M^{-1} J^T, shape (nv, k)
     lam_inv = jac @ minv_jt
     if damping:
         lam_inv = lam_inv + damping * np.eye(lam_inv.shape[0])

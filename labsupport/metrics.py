@@ -22,7 +22,7 @@ def _samples(error) -> np.ndarray:
         raise ValueError(f"the RMS is taken of numbers, but the error holds None: {validate.short(error)}")
     try:
         error = np.asarray(error, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(f"the RMS is taken of numbers, got {validate.short(error)}") from None
     if error.ndim == 0:
         raise ValueError(f"the RMS is taken over samples, an array of them; got the single number {error}")
@@ -60,7 +60,7 @@ def cumulative_effort(t, tau):
 
     ``tau`` is ``(N,)`` or ``(N, nu)``; the squared norm sums the joints.
     """
-    t, tau = validate.times(t, increasing=True), np.asarray(tau, dtype=float)
+    t, tau = validate.times(t, increasing=True), validate.vector("tau", tau, None)
     if t.ndim != 1 or tau.ndim not in (1, 2) or len(tau) != len(t):
         raise ValueError(
             f"cumulative_effort needs one torque per time: t of shape (N,) and tau of shape (N,) or (N, nu), "
@@ -73,7 +73,10 @@ def cumulative_effort(t, tau):
 def _step_response(y, t=None) -> tuple[np.ndarray, np.ndarray | None]:
     """A step response as float arrays: ``y`` one-dimensional with at least one sample and, if
     given, times ``t`` of the same length; a ``ValueError`` otherwise."""
-    y = np.asarray(y, dtype=float)
+    try:
+        y = np.asarray(y, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"a step response is numbers, one per sample, got y = {validate.short(y)}") from None
     t = None if t is None else validate.times(t, increasing=True)
     if y.ndim != 1:
         raise ValueError(
@@ -179,8 +182,11 @@ def second_order_error(t, e0, edot0, wn: float, zeta: float):
     r"""Closed-form free response of :math:`\ddot e + 2\zeta\omega_n\dot e + \omega_n^2 e = 0` from
     :math:`e(0)=e_0`, :math:`\dot e(0)=\dot e_0` (any :math:`\zeta>0`); broadcasts over components.
     """
-    e0 = validate.vector("e0", e0, np.shape(e0)) if np.ndim(e0) else validate.number("e0", e0)
-    edot0 = validate.vector("edot0", edot0, np.shape(edot0)) if np.ndim(edot0) else validate.number("edot0", edot0)
+    e0, edot0 = validate.vector("e0", e0, None), validate.vector("edot0", edot0, None)
+    if e0.ndim > 1 or edot0.ndim > 1:
+        raise ValueError(
+            f"e0 and edot0 are a number or one value per component (1-D), got shapes {e0.shape} and {edot0.shape}"
+        )
     try:
         e0, edot0 = (np.asarray(x, dtype=float) for x in np.broadcast_arrays(e0, edot0))
     except ValueError:
@@ -271,7 +277,7 @@ def saturation(log, applied) -> np.ndarray:
 def _applied(log, applied) -> np.ndarray:
     """``applied`` as an array shaped like ``log.tau`` (one exerted torque per step and
     actuator), or a ``ValueError``."""
-    applied = np.asarray(applied, dtype=float)
+    applied = validate.vector("applied", applied, None)
     if applied.shape != validate.run_log(log).tau.shape:
         raise ValueError(
             f"applied must hold one exerted torque per step and actuator, shape {log.tau.shape} as log.tau, "

@@ -106,11 +106,7 @@ class SingleJoint:
             raise ValueError(f"dt must be at most the duration ({duration} s), got {dt!r}")
         validate.steps(duration, dt)  # not a log past the memory
 
-        if not callable(torque):
-            raise ValueError(
-                f"torque must be a function torque(t, state) -> float, state = (theta, theta_dot); got "
-                f"{validate.short(torque)}"
-            )
+        validate.function("torque", torque, "a function torque(t, state) -> float, state = (theta, theta_dot)")
 
         def checked_torque(t, x):
             try:

@@ -383,7 +383,7 @@ def _floats(value) -> np.ndarray:
     it must be)."""
     try:
         return np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return np.empty(0)
 
 

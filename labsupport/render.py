@@ -91,9 +91,8 @@ def make_renderer(model: mujoco.MjModel, width: int = 320, height: int = 240) ->
     """
     if os.environ.get(BATCH_ENV):  # a graded notebook's pictures would only spend its time limits
         raise RenderingUnavailable("pictures and videos are not made while the batch grader runs the notebook")
-    width, height = int(width), int(height)
-    if width <= 0 or height <= 0:
-        raise ValueError(f"width and height must be positive pixels, got {width}x{height}")
+    validate.mujoco_model(model)
+    width, height = validate.whole("width", width, 1), validate.whole("height", height, 1)
     if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
         raise ValueError(
             f"{width}x{height} is larger than the model's offscreen buffer "
@@ -293,7 +292,7 @@ def _points(path) -> np.ndarray:
     """``path`` as finite points of shape (K, 3), or a ``ValueError`` that says so."""
     try:
         points = np.asarray(path, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         points = np.empty(0)
     if points.ndim != 2 or points.shape[1] != 3 or not np.isfinite(points).all():
         raise ValueError(f"path must be finite points of shape (K, 3), got {validate.short(path)}")
@@ -408,13 +407,17 @@ def video_html(
     (``aria-label``), and what a browser that cannot play it shows instead.
     """
     text = escape(text_alternative(description, "a video"))
-    frames = np.asarray(frames)
+    try:
+        frames = np.asarray(frames)
+    except ValueError:  # nested lists of unequal lengths
+        frames = np.empty(0)
     if frames.ndim != 4 or len(frames) == 0 or frames.shape[-1] != 3:
         raise ValueError(
             "frames must be a video: an (F, height, width, 3) array of F >= 1 RGB frames (render_run makes "
             f"one), got shape {frames.shape}; for a single picture use show_picture"
         )
     fps = validate.number("fps", fps, positive=True)
+    qp = validate.whole("qp", qp, 0, 51)  # H.264's range: 0 is lossless, 51 the coarsest
     require_ffmpeg()
     data = mediapy.compress_video(frames, fps=fps, qp=qp)
     html = mediapy.html_from_compressed_video(data, frames.shape[2], frames.shape[1], title=title, autoplay=False)

@@ -228,19 +228,11 @@ def simulate(
     (3000, 1) 30.000 deg
     """
     validate.model_and_data(model, data)
-    if not callable(controller):
-        raise ValueError(
-            f"controller must be a function controller(model, data) -> tau, got {validate.short(controller)}"
-        )
-    if reference is not None and not callable(reference):
-        raise ValueError(
-            "reference must be a function of time returning a Reference (for a fixed target: "
-            f"lambda t: trajectories.set_point(t, x)), got {validate.short(reference)}"
-        )
-    if actuation is not None and not callable(actuation):
-        raise ValueError(
-            f"actuation must be a function actuation(model, data, tau) -> ctrl, got {validate.short(actuation)}"
-        )
+    validate.function("controller", controller, "a function controller(model, data) -> tau")
+    if reference is not None:
+        validate.function("reference", reference, validate.REFERENCE)
+    if actuation is not None:
+        validate.function("actuation", actuation, "a function actuation(model, data, tau) -> ctrl")
     if actuation is None:
         _check_torque_actuators(model)
     log_after_step = validate.flag("log_after_step", log_after_step)
@@ -457,7 +449,7 @@ def _as_torque(tau, nu: int) -> np.ndarray:
         raise ValueError(f"the controller returned the text {tau!r}; it must return a torque of shape ({nu},)")
     try:
         tau = np.asarray(tau, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(
             f"the controller returned {validate.short(tau)}, not numbers; it must return a torque of shape ({nu},)"
         ) from None
@@ -631,7 +623,7 @@ def site_poses(model: mujoco.MjModel, q: np.ndarray, site: str | int) -> tuple[n
     site_id = dynamics.site_id(model, site)
     try:
         rows = np.asarray(q, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         rows = np.empty(0)  # not numbers: refused below
     if rows.ndim == 1 and rows.size == model.nq:
         rows = rows[None]  # one configuration
@@ -640,6 +632,8 @@ def site_poses(model: mujoco.MjModel, q: np.ndarray, site: str | int) -> tuple[n
             f"q must hold one configuration per row, shape (N, {model.nq}) (or ({model.nq},) for one), "
             f"got {validate.short(q)}"
         )
+    if not np.isfinite(rows).all():
+        raise ValueError(f"q must be finite: row {np.flatnonzero(~np.isfinite(rows).all(axis=1))[0]} is not")
     q = rows
     scratch = mujoco.MjData(model)
     qpos, xpos, xmat = scratch.qpos, scratch.site_xpos[site_id], scratch.site_xmat[site_id]

@@ -29,6 +29,7 @@ def evaluate(reference: Callable, t) -> Reference:
     """``reference(t)`` with its parts as float arrays; a ``ValueError`` that says what to return
     when the function returns anything but a :class:`Reference` (a bare position array would
     otherwise be read as position, velocity and acceleration, one per entry)."""
+    validate.function("reference", reference, validate.REFERENCE)
     result = reference(t)
     if not isinstance(result, Reference):
         raise ValueError(
@@ -51,7 +52,7 @@ def set_point(t, point) -> Reference:
      [1. 0. 2.]]
     """
     t = validate.times(t)
-    point = validate.vector("point", point, np.shape(point))
+    point = validate.vector("point", point, None)
     if point.ndim != 1:
         raise ValueError(f"point must be one position, a 1-D array, got shape {point.shape}")
     pos = np.broadcast_to(point, t.shape + point.shape).copy()
@@ -219,6 +220,7 @@ def sample(
     dt = validate.number("dt", dt, positive=True)
     duration = validate.number("duration", duration, nonnegative=True)
     offset = validate.number("offset", offset)
+    validate.function("reference", reference, validate.REFERENCE)
     n = validate.steps(duration, dt) if duration > 0 else 0
     t = np.arange(n + 2) * dt + offset
     try:

@@ -22,21 +22,25 @@ def vector(name: str, value, shape) -> np.ndarray:
     Args:
         name: the argument's name, as the caller knows it (used in the message).
         value: anything ``np.asarray`` turns into numbers.
-        shape: the expected shape, e.g. ``(2,)`` or ``(6, 7)``; an ``int`` means ``(n,)``.
+        shape: the expected shape, e.g. ``(2,)`` or ``(6, 7)``; an ``int`` means ``(n,)``;
+            ``None`` takes any shape (one number included).
 
     Returns:
         A float64 array (the input itself when it already is one of the right shape).
 
     Raises:
-        ValueError: the value is not numeric, has another shape, or holds NaN or inf.
+        ValueError: the value is not numeric (nested lists of unequal lengths, a number too
+            large for a float), has another shape, or holds NaN or inf.
     """
-    shape = (int(shape),) if np.ndim(shape) == 0 else tuple(int(n) for n in shape)
+    if shape is not None:
+        shape = (int(shape),) if np.ndim(shape) == 0 else tuple(int(n) for n in shape)
     not_text(name, value)
     try:
         array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be numbers of shape {shape}, got {value!r}") from None
-    if array.shape != shape:
+    except (TypeError, ValueError, OverflowError):
+        expected = "numbers" if shape is None else f"numbers of shape {shape}"
+        raise ValueError(f"{name} must be {expected}, got {short(value)}") from None
+    if shape is not None and array.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got shape {array.shape}: {short(value)}")
     if not np.all(np.isfinite(array)):
         raise ValueError(f"{name} must be finite, got {short(array)}")
@@ -54,7 +58,7 @@ def number(name: str, value, *, positive: bool = False, nonnegative: bool = Fals
     not_text(name, value)
     try:
         result = float(np.asarray(value, dtype=float).reshape(()))
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(f"{name} must be a single real number, got {short(value)}") from None
     if not np.isfinite(result):
         raise ValueError(f"{name} must be finite, got {value!r}")
@@ -63,6 +67,17 @@ def number(name: str, value, *, positive: bool = False, nonnegative: bool = Fals
     if nonnegative and not result >= 0:
         raise ValueError(f"{name} must be non-negative, got {value!r}")
     return result
+
+
+def whole(name: str, value, low: int, high: int | None = None) -> int:
+    """``value`` as an ``int`` from ``low`` to ``high`` (inclusive; no upper bound for ``None``): a
+    whole number such as a count of pixels, or a ``ValueError`` that says what is allowed."""
+    allowed = f"a whole number from {low} to {high}" if high is not None else f"a whole number, at least {low}"
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer, float, np.floating)):
+        raise ValueError(f"{name} must be {allowed}, got {short(value)}")
+    if not (np.isfinite(value) and float(value).is_integer() and low <= value and (high is None or value <= high)):
+        raise ValueError(f"{name} must be {allowed}, got {short(value)}")
+    return int(value)
 
 
 #: The most time steps one run, or one sampled reference, may hold: 10 million (2.8 hours at
@@ -109,13 +124,27 @@ def times(t, increasing: bool = False) -> np.ndarray:
     not_text("t", t)
     try:
         t = np.asarray(t, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(f"t must be a time in seconds (a number or an array of them), got {short(t)}") from None
     if not np.isfinite(t).all():
         raise ValueError(f"t must be finite, got {short(t)}")
     if increasing and t.ndim == 1 and not np.all(np.diff(t) > 0):
         raise ValueError("the times t must increase from sample to sample")
     return t
+
+
+def function(name: str, value, expected: str) -> None:
+    """``ValueError`` unless ``value`` can be called; ``expected`` says what kind of function
+    (``"a function controller(model, data) -> tau"``)."""
+    if not callable(value):
+        raise ValueError(f"{name} must be {expected}, got {short(value)}")
+
+
+#: What a reference is, for :func:`function`'s message.
+REFERENCE = (
+    "a function of time returning a trajectories.Reference (for a fixed target x: "
+    "lambda t: trajectories.set_point(t, x))"
+)
 
 
 def not_text(name: str, value) -> None:
@@ -192,8 +221,11 @@ def real(returned: str, value) -> None:
 
 def short(value) -> str:
     """``value`` for an error message: 4 digits, long arrays elided, 200 characters at most."""
-    with np.printoptions(precision=4, threshold=12, edgeitems=3):
-        text = repr(value) if not isinstance(value, np.ndarray) else np.array2string(value)
+    try:
+        with np.printoptions(precision=4, threshold=12, edgeitems=3):
+            text = repr(value) if not isinstance(value, np.ndarray) else np.array2string(value)
+    except ValueError:  # an integer of more digits than Python will print
+        text = f"a {type(value).__name__} too large to print"
     return text if len(text) <= 200 else text[:197] + "..."
 
 

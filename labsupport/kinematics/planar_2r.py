@@ -92,7 +92,7 @@ def _q(q, name="q") -> np.ndarray:
         )
     try:
         q = np.asarray(q, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         message = f"{name} must be numbers of shape (..., 2), got {q!r}"
         raise ValueError(message) from None
     if q.shape[-1:] != (2,):

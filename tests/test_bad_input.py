@@ -1,0 +1,96 @@
+"""Bad arguments to the package's helpers end in a ``ValueError`` raised by the package, whose
+message names the argument in plain words, never in NumPy's or MuJoCo's own error from deep inside.
+
+The cases are those a sweep found, each argument replaced in turn by text, NaN, a Python integer
+too large for a float, nested lists of unequal lengths, a wrong shape, or a value of another
+kind: the helpers' own checks had missed them.
+"""
+
+import numpy as np
+import pytest
+
+import labsupport  # noqa: F401  (before mujoco)
+from labsupport import actuators, book, dynamics, metrics, render, sim, trajectories, validate
+from labsupport.plants import load_model
+
+RAGGED = [[1.0, 2.0], [3.0]]
+HUGE = 10**400  # a Python integer beyond the largest float
+
+
+@pytest.fixture(scope="module")
+def arm():
+    return load_model("planar_2r")
+
+
+@pytest.fixture(scope="module")
+def log(arm):
+    model, data = arm
+    return sim.simulate(model, data, lambda m, d: d.qfrc_bias.copy(), 0.02, q0=[0.2, 0.3])
+
+
+CASES = {
+    "vector of a huge integer": (lambda a, g: validate.vector("q", [HUGE, 1.0], 2), "q must be numbers of shape"),
+    "number of a huge integer": (lambda a, g: validate.number("dt", HUGE), "dt must be a single real number"),
+    "times of a huge integer": (lambda a, g: validate.times([0.0, HUGE]), "t must be a time in seconds"),
+    "set point of unequal lists": (lambda a, g: trajectories.set_point(0.0, RAGGED), "point must be numbers"),
+    "reference not a function": (lambda a, g: trajectories.sample(None, 0.002, 1.0), "reference must be a function"),
+    "evaluate a list": (lambda a, g: trajectories.evaluate([0.1, 0.2], 0.5), "reference must be a function of time"),
+    "jacobian_solve of text": (lambda a, g: dynamics.jacobian_solve(np.eye(2), ["a", "b"]), "J and rhs must be"),
+    "jacobian_solve of unequal lists": (lambda a, g: dynamics.jacobian_solve(RAGGED, [1, 2]), "J and rhs must be"),
+    "solve_mass of a huge integer": (lambda a, g: dynamics.solve_mass(*a, [HUGE, 1]), "rhs must be numbers"),
+    "task_space_inertia of one row": (
+        lambda a, g: dynamics.task_space_inertia(*a, np.ones(2)),
+        r"jac must be a Jacobian of shape \(k, 2\)",
+    ),
+    "effort of text": (lambda a, g: metrics.cumulative_effort(g.t, "abc"), "tau must be numbers"),
+    "effort of a huge integer": (lambda a, g: metrics.cumulative_effort([0.0, 1.0], [HUGE, 1]), "tau must be"),
+    "overshoot of unequal lists": (lambda a, g: metrics.overshoot(RAGGED, 1.0, 0.0), "a step response is numbers"),
+    "settling of text": (lambda a, g: metrics.settling_time([0, 1], ["a", "b"], 1.0, 0.0), "a step response is"),
+    "saturation of text": (lambda a, g: metrics.saturation(g, ["a", "b"]), "applied must be numbers"),
+    "error of a matrix": (
+        lambda a, g: metrics.second_order_error([0.0, 1.0], np.ones((3, 3)), 0.0, 5.0, 0.7),
+        "e0 and edot0 are a number or one value per component",
+    ),
+    "servo_ctrl without servos": (
+        lambda a, g: actuators.servo_ctrl(None, np.zeros(2), np.zeros(2), np.zeros(2)),
+        r"servo_ctrl takes the servos first, Servo.from_model\(model\), got None",
+    ),
+    "servo_force without servos": (
+        lambda a, g: actuators.servo_force(2.0, np.zeros(2), np.zeros(2), np.zeros(2)),
+        "servo_force takes the servos first",
+    ),
+    "renderer without a model": (lambda a, g: render.make_renderer(None, 64, 48), "model must be a mujoco.MjModel"),
+    "renderer of text pixels": (lambda a, g: render.make_renderer(a[0], "wide", 48), "width must be a whole number"),
+    "renderer of infinite pixels": (lambda a, g: render.make_renderer(a[0], 64, np.inf), "height must be a whole"),
+    "renderer of half pixels": (lambda a, g: render.make_renderer(a[0], 64.5, 48), "width must be a whole number"),
+    "video of unequal lists": (
+        lambda a, g: render.video_html(RAGGED, 12, description="the arm traces a circle in the plane"),
+        r"frames must be a video: an \(F, height, width, 3\) array",
+    ),
+    "video quality out of range": (
+        lambda a, g: render.video_html(
+            np.zeros((2, 16, 16, 3), np.uint8), 12, description="the arm traces a circle in the plane", qp=-1
+        ),
+        "qp must be a whole number from 0 to 51, got -1",
+    ),
+    "text alternative an array": (lambda a, g: book.text_alternative(np.ones(3)), "needs a text alternative"),
+    "site poses not finite": (
+        lambda a, g: sim.site_positions(a[0], [[0.1, 0.2], [np.nan, 0.0]], 0),
+        "q must be finite: row 1 is not",
+    ),
+}
+
+
+@pytest.mark.parametrize("call, message", CASES.values(), ids=CASES.keys())
+def test_a_bad_argument_is_named_by_the_package(arm, log, call, message):
+    with pytest.raises(ValueError, match=message) as err:
+        call(arm, log)
+    assert "labsupport" in err.traceback[-1].path.parts, f"raised from {err.traceback[-1].path}, not the package"
+
+
+def test_the_checks_keep_what_they_should_accept():
+    """The stricter conversions still take what they took: any shape, whole floats as pixels."""
+    np.testing.assert_array_equal(validate.vector("x", [[1, 2]], None), [[1.0, 2.0]])
+    assert validate.whole("width", 320.0, 1) == 320 and validate.whole("qp", np.int64(0), 0, 51) == 0
+    assert float(metrics.second_order_error(0.0, 0.1, 0.0, 5.0, 0.7)) == pytest.approx(0.1)
+    np.testing.assert_allclose(metrics.second_order_error([0.0], [0.1, 0.2], 0.0, 5.0, 0.7), [[0.1, 0.2]])
