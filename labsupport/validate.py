@@ -5,6 +5,8 @@ what came instead, rather than a traceback from deep inside NumPy or MuJoCo.
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 
@@ -73,9 +75,11 @@ def whole(name: str, value, low: int, high: int | None = None) -> int:
     """``value`` as an ``int`` from ``low`` to ``high`` (inclusive; no upper bound for ``None``): a
     whole number such as a count of pixels, or a ``ValueError`` that says what is allowed."""
     allowed = f"a whole number from {low} to {high}" if high is not None else f"a whole number, at least {low}"
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer, float, np.floating)):
-        raise ValueError(f"{name} must be {allowed}, got {short(value)}")
-    if not (np.isfinite(value) and float(value).is_integer() and low <= value and (high is None or value <= high)):
+    whole_number = not isinstance(value, (bool, np.bool_)) and (
+        isinstance(value, (int, np.integer))
+        or (isinstance(value, (float, np.floating)) and math.isfinite(value) and float(value).is_integer())
+    )
+    if not whole_number or value < low or (high is not None and value > high):
         raise ValueError(f"{name} must be {allowed}, got {short(value)}")
     return int(value)
 

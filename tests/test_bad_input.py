@@ -63,6 +63,13 @@ CASES = {
     "renderer of text pixels": (lambda a, g: render.make_renderer(a[0], "wide", 48), "width must be a whole number"),
     "renderer of infinite pixels": (lambda a, g: render.make_renderer(a[0], 64, np.inf), "height must be a whole"),
     "renderer of half pixels": (lambda a, g: render.make_renderer(a[0], 64.5, 48), "width must be a whole number"),
+    "renderer of a huge integer": (lambda a, g: render.make_renderer(a[0], HUGE, 48), "larger than the model's"),
+    "video quality of a huge integer": (
+        lambda a, g: render.video_html(
+            np.zeros((2, 16, 16, 3), np.uint8), 12, description="the arm traces a circle in the plane", qp=2**70
+        ),
+        "qp must be a whole number from 0 to 51, got 1180591620717411303424",
+    ),
     "video of unequal lists": (
         lambda a, g: render.video_html(RAGGED, 12, description="the arm traces a circle in the plane"),
         r"frames must be a video: an \(F, height, width, 3\) array",
