@@ -603,6 +603,25 @@ def test_sound_approximations_get_full_marks(master2):
                     assert result.status == PASS and result.score == 1, result
 
 
+@pytest.mark.filterwarnings("ignore::PendingDeprecationWarning")  # NumPy's word on np.matrix, which students meet
+def test_right_numbers_as_a_row_or_a_column_get_full_marks(master1):
+    """np.matrix products and x[:, None] keep two dimensions; the numbers are right, and
+    :func:`labsupport.sim.simulate` takes such a torque too. Three numbers too few or too many are
+    still refused, with the shape asked for."""
+    ik, pd, ct = master1["ik_3r"], master1["pd_torque"], master1["ct_joint_torque"]
+    cases = {
+        "p1_ik": {"ik_3r": lambda x, elbow_up=True: np.matrix(ik(x, elbow_up))},
+        "p1_pd": {"pd_torque": lambda *args: pd(*args)[:, None]},
+        "p1_ct": {"ct_joint_torque": lambda *args: np.matrix(ct(*args))},
+        "p1_reach": {"ct_joint_torque": lambda *args: ct(*args)[None, :]},
+    }
+    for name, functions in cases.items():
+        result = grade(name, OTHER_SEED, **functions)
+        assert result.status == PASS and result.score == 1, result
+    short = grade("p1_pd", pd_torque=lambda *args: pd(*args)[:2])
+    assert short.score == 0 and "the torque from pd_torque has shape (2,), expected (3,): 3 numbers" in short.message
+
+
 def test_numerical_ik_gets_full_marks():
     result = grade("p1_ik", OTHER_SEED, ik_3r=newton_ik)
     assert result.status == PASS and result.score == 1, result

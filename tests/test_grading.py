@@ -122,7 +122,7 @@ EXPECTED = {
         "graded",
         ["p1_ct: CT: labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO"],
     ),
-    # right answers written unusually (SciPy's least squares for the IK, gain matrices, MuJoCo's mj_mulM)
+    # right answers written unusually (SciPy's least squares for the IK, np.matrix gains, MuJoCo's mj_mulM)
     "unusual_but_right.ipynb": (FULL, "graded", ["all checks passed"]),
     # attacks on the grader, from notebooks that implement nothing: any point is a successful attack
     "escapes.ipynb": ({}, "graded", NOTHING),

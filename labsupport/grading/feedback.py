@@ -171,10 +171,12 @@ def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.nda
         raise StudentError(complex_message(fname))
     try:
         arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise StudentError(f"{fname} returned {type(value).__name__}, expected {size} numbers") from None
+    if arr.size == size:  # a row or a column of the right numbers (np.matrix, x[:, None]): as simulate takes it
+        arr = arr.reshape(size)
     if arr.shape != (size,):
-        raise StudentError(f"the {what} from {fname} has shape {arr.shape}, expected ({size},)")
+        raise StudentError(f"the {what} from {fname} has shape {arr.shape}, expected ({size},): {size} numbers")
     if np.any(np.isnan(arr)):
         raise StudentError(f"the {what} from {fname} contains NaN: {np.array2string(arr, precision=3)}")
     if not np.all(np.isfinite(arr)):

@@ -162,8 +162,9 @@ def ct_joint_torque(model, data, q_d, Kp, Kd):
 
 #: Right answers written as a student may, unlike the master: a numerical IK (SciPy's bounded
 #: least squares on MuJoCo's forward kinematics, the bounds keeping the elbow on the branch
-#: asked), the PD with gain matrices, and the computed torque through MuJoCo's own product
-#: M(q) v (``mj_mulM``) and ``qfrc_bias``. They must score full marks in the sandbox too.
+#: asked), the PD with gain matrices (``np.matrix``, whose torque is a (1, 3) row), and the
+#: computed torque through MuJoCo's own product M(q) v (``mj_mulM``) and ``qfrc_bias``. They
+#: must score full marks in the sandbox too.
 UNUSUAL_IK = """from scipy.optimize import least_squares
 
 L1, L2, L3 = 1.0, 1.0, 1.0   # link lengths [m]
@@ -190,7 +191,9 @@ def ik_3r(x, elbow_up=True):
     return (np.array([q1, *fit.x]) + np.pi) % (2 * np.pi) - np.pi"""
 
 UNUSUAL_PD = """def pd_torque(model, data, q_d, Kp, Kd):
-    K_p, K_d = np.diag(np.broadcast_to(Kp, 3)), np.diag(np.broadcast_to(Kd, 3))
+    # gain matrices as np.matrix, a MATLAB habit: the torque comes out as a (1, 3) row
+    K_p = np.matrix(np.diag(np.broadcast_to(Kp, 3)))
+    K_d = np.matrix(np.diag(np.broadcast_to(Kd, 3)))
     return K_p @ (np.asarray(q_d) - data.qpos) - K_d @ data.qvel"""
 
 UNUSUAL_CT = """def ct_joint_torque(model, data, q_d, Kp, Kd):
