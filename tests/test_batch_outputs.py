@@ -400,6 +400,10 @@ def test_the_rubric_command_prints_or_writes_a_problems_rubric(tmp_path, capsys)
     with pytest.raises(SystemExit):
         rubric.main(["--spec", str(own)])
     assert "not an autograder spec of this labsupport's checks: no check named 'p9'" in capsys.readouterr().err
+    own.write_text(json.dumps({"problem": "p", "checks": [{"name": "p1_pd", "points": "4", "title": "PD"}]}))
+    with pytest.raises(SystemExit):  # points as text, which the totals would choke on
+        rubric.main(["--spec", str(own)])
+    assert "checks: check 'p1_pd' must have a positive number of points, got '4'" in capsys.readouterr().err
 
 
 def test_every_check_says_how_it_scores():
@@ -491,9 +495,9 @@ def test_assign_check_says_how_to_regenerate_what_drifted(tmp_path, capsys, monk
     master.metadata["labsupport_grading"] = {
         "problem": "p9",
         "student": "notebooks/p9.ipynb",
-        "checks": [{"name": "c1", "points": 1, "title": "the one check"}],
+        "checks": [{"name": "p1_pd", "points": 1, "title": "the one check"}],
     }
-    master.cells = [nbformat.v4.new_code_cell('check("c1", globals())', id="c1")]
+    master.cells = [nbformat.v4.new_code_cell('check("p1_pd", globals())', id="c1")]
     (tmp_path / "notebooks" / "masters").mkdir(parents=True)
     nbformat.write(master, tmp_path / "notebooks" / "masters" / "p9.ipynb")
     monkeypatch.setattr(assign, "ROOT", tmp_path)  # a checkout of one master, nothing generated yet

@@ -64,6 +64,26 @@ def test_assign_rejects_unbalanced_markers():
     )
 
 
+@pytest.mark.parametrize(
+    "change, words",
+    [
+        ({"points": "three"}, "check 'p1_ik' must have a positive number of points, got 'three'"),
+        ({"points": -3}, "must have a positive number of points, got -3"),
+        ({"points": True}, "must have a positive number of points, got True"),
+        ({"title": " "}, "check 'p1_ik' needs a title"),
+        ({"name": "p1_xyz"}, "no check named 'p1_xyz' in labsupport.grading"),
+        ({"name": "p1_pd"}, "each check may be listed once"),
+    ],
+)
+def test_assign_rejects_a_check_the_grader_could_not_add_up(change, words):
+    """An instructor's slip in the metadata's checks stops assign with the check named, before a
+    spec that the batch grader, the rubric and Canvas would choke on is written."""
+    master = nbformat.read(str(ROOT / "notebooks" / "masters" / "problem1_reaching.ipynb"), as_version=4)
+    master.metadata["labsupport_grading"]["checks"][0].update(change)
+    with pytest.raises(assign.MasterError, match=re.escape(words)):
+        assign.student_notebook(master, "problem1 master")
+
+
 @pytest.mark.parametrize("name", ["problem1_reaching", "problem2_tracking"])
 def test_student_notebook_runs_and_reports_not_implemented(name, tmp_path):
     nb = nbformat.read(str(ROOT / "notebooks" / f"{name}.ipynb"), as_version=4)

@@ -35,6 +35,8 @@ from pathlib import Path
 
 import nbformat
 
+from labsupport.grading import registry
+
 MASTERS = Path("notebooks") / "masters"
 #: Where the autograder specs are written, relative to the repository root.
 SPEC_DIR = Path("tests") / "autograder"
@@ -48,29 +50,29 @@ _CHECK_CELL = re.compile(r'^check\("([a-z0-9_]+)", globals\(\)\)\s*$')
 CARRIED_METADATA = ("mystnb",)
 
 
-def load_spec(path: Path) -> dict:
-    """The autograder spec at ``path`` (written by :func:`main`), or a ``ValueError`` that says
-    the file is not one: it must be JSON naming the problem and its checks with their points."""
-    try:
-        spec = json.loads(Path(path).read_text(encoding="utf-8"))
-        ok = (
-            isinstance(spec, dict)
-            and isinstance(spec.get("problem"), str)
-            and isinstance(spec.get("checks"), list)
-            and all(isinstance(c, dict) and "name" in c and float(c["points"]) >= 0 for c in spec["checks"])
-        )
-    except (OSError, ValueError, KeyError, TypeError) as err:
-        raise ValueError(f"{path} is not an autograder spec of this labsupport's checks: {err}") from None
-    if not ok:
-        raise ValueError(
-            f"{path} is not an autograder spec of this labsupport's checks (no problem, or no checks with "
-            "points): pass --problem NAME, or a spec written by labsupport.instructor.assign"
-        )
-    return spec
-
-
 class MasterError(ValueError):
     """The master notebook does not follow the format (message says where)."""
+
+
+def load_spec(path: Path) -> dict:
+    """The autograder spec at ``path`` (written by :func:`main`), or a ``ValueError`` that says
+    the file is not one: it must be JSON naming the problem and its checks with their points
+    (:func:`check_the_checks`)."""
+    not_a_spec = f"{path} is not an autograder spec of this labsupport's checks"
+    try:
+        spec = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as err:
+        raise ValueError(f"{not_a_spec}: {err}") from None
+    if not isinstance(spec, dict) or not isinstance(spec.get("problem"), str) or "checks" not in spec:
+        raise ValueError(
+            f"{not_a_spec} (no problem, or no checks with points): pass --problem NAME, or a spec written by "
+            "labsupport.instructor.assign"
+        )
+    try:
+        check_the_checks(spec["checks"])
+    except MasterError as err:
+        raise ValueError(f"{not_a_spec}: {err}") from None
+    return spec
 
 
 def strip_code(source: str, where: str) -> str:
@@ -103,11 +105,37 @@ def strip_markdown(source: str) -> str:
     return re.sub(r"<!-- BEGIN SOLUTION -->.*?<!-- END SOLUTION -->\n?", "", source, flags=re.S).strip("\n")
 
 
+def check_the_checks(checks) -> None:
+    """``MasterError`` unless ``checks`` lists each check once, by a name that
+    :func:`labsupport.grading.registry` knows, with a positive number of points and a title: the
+    batch grader, the rubric and Canvas add the points up. The message names the check."""
+    known = registry()
+    if not isinstance(checks, list) or not checks:
+        raise MasterError(f"the checks must be a list of {{name, points, title}}, got {checks!r}")
+    for c in checks:
+        if not isinstance(c, dict) or not {"name", "points", "title"} <= set(c):
+            raise MasterError(f"each check needs a name, points and a title, got {c!r}")
+        if c["name"] not in known:
+            raise MasterError(f"no check named {c['name']!r} in labsupport.grading; they are {sorted(known)}")
+        points = c["points"]
+        if isinstance(points, bool) or not isinstance(points, (int, float)) or not 0 < points < float("inf"):
+            raise MasterError(f"check {c['name']!r} must have a positive number of points, got {points!r}")
+        if not isinstance(c["title"], str) or not c["title"].strip():
+            raise MasterError(f"check {c['name']!r} needs a title (a few words), got {c['title']!r}")
+    names = [c["name"] for c in checks]
+    if len(set(names)) != len(names):
+        raise MasterError(f"each check may be listed once, got {names}")
+
+
 def student_notebook(master: nbformat.NotebookNode, where: str = "master") -> nbformat.NotebookNode:
     """The student notebook generated from a master (no outputs, same cell ids)."""
     meta = master.metadata.get("labsupport_grading")
     if not meta or not {"problem", "student", "checks"} <= set(meta):
         raise MasterError(f"{where}: metadata 'labsupport_grading' with problem, student and checks is missing")
+    try:
+        check_the_checks(meta["checks"])
+    except MasterError as err:
+        raise MasterError(f"{where}: {err}") from None
     nb = nbformat.v4.new_notebook()
     nb.metadata = {
         "kernelspec": copy.deepcopy(master.metadata.get("kernelspec", {})),

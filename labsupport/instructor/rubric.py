@@ -28,14 +28,13 @@ from __future__ import annotations
 import argparse
 import csv
 import io
-import json
 import sys
 from pathlib import Path
 
 from labsupport import __version__
 from labsupport.grading import PUBLIC_SEED, problem1, problem2
 from labsupport.grading.rules import FORBIDDEN
-from labsupport.instructor.assign import SPECS
+from labsupport.instructor.assign import SPECS, load_spec
 from labsupport.instructor.judge import DEFAULT_BUDGET
 
 _MODULES = (problem1, problem2)
@@ -178,11 +177,11 @@ def main(argv=None) -> None:
             else f"no autograder spec for --problem {args.problem}: the problems are {known}"
         )
     try:
-        spec = json.loads(spec_path.read_text(encoding="utf-8"))
-        canvas = args.out is not None and args.out.suffix.lower() == ".csv"
-        text = canvas_rubric_csv(spec) if canvas else rubric(spec)
-    except (ValueError, KeyError, TypeError) as err:  # not JSON, or not a spec of known checks
-        parser.error(f"{spec_path} is not an autograder spec of this labsupport's checks: {err}")
+        spec = load_spec(spec_path)
+    except ValueError as err:  # not JSON, or not a spec of known checks
+        parser.error(str(err))
+    canvas = args.out is not None and args.out.suffix.lower() == ".csv"
+    text = canvas_rubric_csv(spec) if canvas else rubric(spec)
     if args.out is None:
         sys.stdout.write(text)
     else:
