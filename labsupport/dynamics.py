@@ -9,8 +9,9 @@ The equation of motion MuJoCo integrates is
 controller sees exactly the state the loop hands it.
 
 MuJoCo 4 changed two things the lab's text relies on: ``mj_fullM`` takes ``data`` instead of
-the sparse array ``data.qM``, and ``MjData.qM`` is gone. :func:`mass_matrix` is the only place
-that knows; keep it that way.
+the sparse array ``data.qM``, and ``MjData.qM`` is gone. :func:`mass_matrix` is the only call
+that depends on it, and :func:`full_m_advice` tells a student whose own call meets the other
+MuJoCo what changed; keep the differences in this module.
 """
 
 from __future__ import annotations
@@ -46,6 +47,19 @@ if _version(mujoco.__version__) < OLDEST_MUJOCO:
 
 #: True on MuJoCo >= 4, where ``mj_fullM(model, data, dst)`` replaced ``mj_fullM(model, dst, qM)``.
 FULLM_TAKES_DATA = not hasattr(mujoco.MjData, "qM")
+
+
+def full_m_advice(error: str) -> str:
+    """What to do about an error from ``mj_fullM`` called as the other MuJoCo wants it (the lab's
+    text calls it the MuJoCo 3 way, ``mj_fullM(model, M, data.qM)``), else ``""``; appended to the
+    message a student reads when a law of theirs raises."""
+    if "attribute 'qM'" in error or ("mj_fullM" in error and "incompatible function arguments" in error):
+        return (
+            ". mj_fullM changed with MuJoCo 4: it was mj_fullM(model, M, data.qM), it is mj_fullM(model, data, M), "
+            "and data.qM is gone (this Python has MuJoCo " + mujoco.__version__ + "); mass_matrix(model, data) from "
+            "labsupport.dynamics makes the right call on either"
+        )
+    return ""
 
 
 def _made_for(model: mujoco.MjModel, data: mujoco.MjData) -> None:

@@ -378,6 +378,7 @@ def _controller_failed(err: Exception, model: mujoco.MjModel, data: mujoco.MjDat
             "out or folded (keep the target inside the workspace, away from its edge), or a matrix of data whose "
             "state was set without mj_forward (on a scratch MjData: mj_kinematics, then mj_comPos)"
         )
+    message += dynamics.full_m_advice(message)
     if "shape" in message or isinstance(err, IndexError):
         message += (
             f". The model's state has nq = {model.nq}, nv = {model.nv} and nu = {model.nu}: check that "

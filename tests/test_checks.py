@@ -7,6 +7,7 @@ import importlib
 import importlib.util
 import inspect
 import pkgutil
+import re
 import sys
 import threading
 import time
@@ -620,6 +621,30 @@ def test_right_numbers_as_a_row_or_a_column_get_full_marks(master1):
         assert result.status == PASS and result.score == 1, result
     short = grade("p1_pd", pd_torque=lambda *args: pd(*args)[:2])
     assert short.score == 0 and "the torque from pd_torque has shape (2,), expected (3,): 3 numbers" in short.message
+
+
+def test_mj_full_m_called_the_other_mujocos_way_is_told_what_changed():
+    """The lab's text builds M with mj_fullM(model, M, data.qM), which MuJoCo 4 no longer runs
+    (and MuJoCo 3 refuses MuJoCo 4's form): the student is told why, and what to call instead,
+    by the check and by the loop alike. The law is written the way this MuJoCo does not take."""
+    from labsupport.dynamics import FULLM_TAKES_DATA
+    from labsupport.plants import load_model
+    from labsupport.sim import simulate
+
+    def ct_joint_torque(model, data, q_d, Kp, Kd):
+        M = np.zeros((model.nv, model.nv))
+        if FULLM_TAKES_DATA:
+            mujoco.mj_fullM(model, M, data.qM)  # MuJoCo 3, as in the lab's text
+        else:
+            mujoco.mj_fullM(model, data, M)  # MuJoCo 4
+        return M @ (Kp * (q_d - data.qpos) - Kd * data.qvel) + data.qfrc_bias
+
+    told = "mj_fullM changed with MuJoCo 4: it was mj_fullM(model, M, data.qM), it is mj_fullM(model, data, M)"
+    result = grade("p1_ct", ct_joint_torque=ct_joint_torque)
+    assert result.score == 0 and told in result.message and "mass_matrix(model, data)" in result.message, result
+    model, data = load_model("spatial_3r")
+    with pytest.raises((TypeError, ValueError), match=re.escape(told)):
+        simulate(model, data, lambda m, d: ct_joint_torque(m, d, np.zeros(3), 100.0, 20.0), 0.01)
 
 
 def test_numerical_ik_gets_full_marks():

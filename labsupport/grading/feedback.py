@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from labsupport import validate
+from labsupport.dynamics import full_m_advice
 from labsupport.grading.rules import ForbiddenUse, call_watched, forbidden_message, is_forbidden_message
 
 PASS, PARTIAL, FAIL, NOT_IMPLEMENTED = "pass", "partial", "fail", "not implemented yet"
@@ -287,6 +288,8 @@ def raised_text(fname: str, error: str) -> str:
         hint = SINGULAR_HINT
     elif re.search(r"\(6,|\b6\)", error) and re.search(r"broadcast|dimension|aligned|shape", error):
         hint = JACOBIAN_ROWS_HINT
+    else:
+        hint = full_m_advice(error)
     return f"{fname} raised {error}{hint}"
 
 
