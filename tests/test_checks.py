@@ -299,6 +299,11 @@ def test_complex_numbers_are_named_in_the_notebook_and_in_the_batch_grader(maste
         judge._decode("pd_torque", sandbox._encode(np.array([0.5 + 0j, 1, 2])), call=True)
 
 
+def test_a_list_that_is_not_three_numbers_is_shown():
+    ct = grade("p1_ct", ct_joint_torque=lambda *args: [[1.0], [2.0], [3.0, 4.0]])
+    assert ct.score == 0 and "returned list [[1.0], [2.0], [3.0, 4.0]], expected 3 numbers" in ct.message
+
+
 def test_an_object_that_fails_to_become_numbers_is_named_not_raised():
     """The check promises never to raise because of the student's code: a returned object whose
     own conversion fails with any exception is a zero with a reason, not a traceback."""

@@ -173,7 +173,8 @@ def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.nda
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError, OverflowError):
-        raise StudentError(f"{fname} returned {type(value).__name__}, expected {size} numbers") from None
+        shown = f" {validate.short(value)}" if isinstance(value, (list, tuple, np.ndarray)) else ""
+        raise StudentError(f"{fname} returned {type(value).__name__}{shown}, expected {size} numbers") from None
     if arr.size == size:  # a row or a column of the right numbers (np.matrix, x[:, None]): as simulate takes it
         arr = arr.reshape(size)
     if arr.shape != (size,):
