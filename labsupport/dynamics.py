@@ -168,10 +168,10 @@ def solve_mass(model: mujoco.MjModel, data: mujoco.MjData, rhs: np.ndarray) -> n
     the rows of the result are those of :math:`J M^{-1}` (:math:`M` is symmetric).
     """
     _made_for(model, data)
-    try:
-        y = np.ascontiguousarray(rhs, dtype=float)
-    except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"solve_mass: rhs must be numbers, got {validate.short(rhs)}") from None
+    y = validate.floats(rhs)
+    if y is None:
+        raise ValueError(f"solve_mass: rhs must be numbers, got {validate.short(rhs)}")
+    y = np.ascontiguousarray(y)  # MuJoCo reads rows
     x = np.empty_like(y)
     try:
         if y.ndim == 1:  # MuJoCo solves for rows
@@ -269,7 +269,7 @@ def jacobian_solve(
     front: in the control loop it would cost more than all the rest of this function's checks.
     ``out`` is an optional preallocated ``(nv,)`` result.
     """
-    try:
+    try:  # validate.floats's conversion, inline: this runs at every control step
         J = np.ascontiguousarray(J, dtype=float)
         rhs = np.ascontiguousarray(rhs, dtype=float)
     except (TypeError, ValueError, OverflowError):

@@ -20,10 +20,10 @@ def _samples(error) -> np.ndarray:
     validate.not_text("error", error)
     if isinstance(error, (list, tuple)) and any(value is None for value in error):
         raise ValueError(f"the RMS is taken of numbers, but the error holds None: {validate.short(error)}")
-    try:
-        error = np.asarray(error, dtype=float)
-    except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"the RMS is taken of numbers, got {validate.short(error)}") from None
+    values = validate.floats(error)
+    if values is None:
+        raise ValueError(f"the RMS is taken of numbers, got {validate.short(error)}")
+    error = values
     if error.ndim == 0:
         raise ValueError(f"the RMS is taken over samples, an array of them; got the single number {error}")
     if error.size == 0:
@@ -73,10 +73,10 @@ def cumulative_effort(t, tau):
 def _step_response(y, t=None) -> tuple[np.ndarray, np.ndarray | None]:
     """A step response as float arrays: ``y`` one-dimensional with at least one sample and, if
     given, times ``t`` of the same length; a ``ValueError`` otherwise."""
-    try:
-        y = np.asarray(y, dtype=float)
-    except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"a step response is numbers, one per sample, got y = {validate.short(y)}") from None
+    values = validate.floats(y)
+    if values is None:
+        raise ValueError(f"a step response is numbers, one per sample, got y = {validate.short(y)}")
+    y = values
     t = None if t is None else validate.times(t, increasing=True)
     if y.ndim != 1:
         raise ValueError(
@@ -188,7 +188,7 @@ def second_order_error(t, e0, edot0, wn: float, zeta: float):
             f"e0 and edot0 are a number or one value per component (1-D), got shapes {e0.shape} and {edot0.shape}"
         )
     try:
-        e0, edot0 = (np.asarray(x, dtype=float) for x in np.broadcast_arrays(e0, edot0))
+        e0, edot0 = np.broadcast_arrays(e0, edot0)  # float arrays already (validate.vector)
     except ValueError:
         raise ValueError(
             f"e0 and edot0 must have the same number of components, got shapes {np.shape(e0)} and {np.shape(edot0)}"

@@ -300,8 +300,8 @@ def circle_tracking_figure(runs: Mapping[str, object], desired_path):
     the norm of the Cartesian error in millimetres and the joint torques.
     """
     runs = _logged(runs, site=True, reference=True)
-    path = _floats(desired_path)
-    if path.ndim != 2 or path.shape[1] < 2:
+    path = validate.floats(desired_path)
+    if path is None or path.ndim != 2 or path.shape[1] < 2:
         raise ValueError(
             "desired_path must be the circle's points, an (N, 2) array such as reference(t).pos, "
             f"got {validate.short(desired_path)}"
@@ -378,15 +378,6 @@ def frame_indices(n_samples: int, dt: float, fps: float, speed: float = 1.0, unt
     return np.minimum(np.rint(np.arange(count) * speed / (fps * dt)).astype(int), n_samples - 1)
 
 
-def _floats(value) -> np.ndarray:
-    """``value`` as a float array, or an empty one when it is not numbers (the caller says what
-    it must be)."""
-    try:
-        return np.asarray(value, dtype=float)
-    except (TypeError, ValueError, OverflowError):
-        return np.empty(0)
-
-
 def _arm_panels(panels) -> list[dict]:
     """The panels of :func:`planar_arm_frames` with their arrays as float arrays, or a
     ``ValueError`` naming the panel and the entry that is missing or of the wrong shape."""
@@ -405,8 +396,8 @@ def _arm_panels(panels) -> list[dict]:
         for key, shape in (("q", "(N, 2)"), ("ref", "(N, 2)"), ("path", "(M, 2)"), ("target", "(2,)")):
             if key not in panel:
                 continue
-            value = _floats(panel[key])
-            if value.shape[-1:] != (2,) or value.ndim != (1 if key == "target" else 2):
+            value = validate.floats(panel[key])
+            if value is None or value.shape[-1:] != (2,) or value.ndim != (1 if key == "target" else 2):
                 raise ValueError(
                     f"panel {i} ({panel['title']}): {key} must have shape {shape}, got {validate.short(panel[key])}"
                 )

@@ -290,9 +290,8 @@ def render_picture(
 
 def _points(path) -> np.ndarray:
     """``path`` as finite points of shape (K, 3), or a ``ValueError`` that says so."""
-    try:
-        points = np.asarray(path, dtype=float)
-    except (TypeError, ValueError, OverflowError):
+    points = validate.floats(path)
+    if points is None:
         points = np.empty(0)
     if points.ndim != 2 or points.shape[1] != 3 or not np.isfinite(points).all():
         raise ValueError(f"path must be finite points of shape (K, 3), got {validate.short(path)}")

@@ -448,12 +448,12 @@ def _as_torque(tau, nu: int) -> np.ndarray:
     validate.real("the controller returned", tau)
     if isinstance(tau, (str, bytes)):  # NumPy would read "1" as 1 N·m
         raise ValueError(f"the controller returned the text {tau!r}; it must return a torque of shape ({nu},)")
-    try:
-        tau = np.asarray(tau, dtype=float)
-    except (TypeError, ValueError, OverflowError):
+    values = validate.floats(tau)
+    if values is None:
         raise ValueError(
             f"the controller returned {validate.short(tau)}, not numbers; it must return a torque of shape ({nu},)"
-        ) from None
+        )
+    tau = values
     if tau.size != nu:
         raise ValueError(f"the controller returned a torque of shape {tau.shape}, expected ({nu},)")
     return tau.reshape(nu)
@@ -622,9 +622,8 @@ def site_poses(model: mujoco.MjModel, q: np.ndarray, site: str | int) -> tuple[n
     integrator's last evaluation, so logged poses are recomputed with this)."""
     validate.mujoco_model(model)
     site_id = dynamics.site_id(model, site)
-    try:
-        rows = np.asarray(q, dtype=float)
-    except (TypeError, ValueError, OverflowError):
+    rows = validate.floats(q)
+    if rows is None:
         rows = np.empty(0)  # not numbers: refused below
     if rows.ndim == 1 and rows.size == model.nq:
         rows = rows[None]  # one configuration

@@ -18,6 +18,17 @@ _OBJECTS = {
 }
 
 
+def floats(value) -> np.ndarray | None:
+    """``value`` as a float array, or ``None`` where NumPy cannot read it as numbers: an object,
+    nested lists of unequal lengths, a Python integer too large for a float. The one place that
+    knows what NumPy raises then; callers say what the value should have been. (Text NumPy reads:
+    "5" is 5.0; :func:`not_text` refuses it first.)"""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        return None
+
+
 def vector(name: str, value, shape) -> np.ndarray:
     """``value`` as a float array of exactly ``shape``, with finite entries.
 
@@ -37,11 +48,10 @@ def vector(name: str, value, shape) -> np.ndarray:
     if shape is not None:
         shape = (int(shape),) if np.ndim(shape) == 0 else tuple(int(n) for n in shape)
     not_text(name, value)
-    try:
-        array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError, OverflowError):
+    array = floats(value)
+    if array is None:
         expected = "numbers" if shape is None else f"numbers of shape {shape}"
-        raise ValueError(f"{name} must be {expected}, got {short(value)}") from None
+        raise ValueError(f"{name} must be {expected}, got {short(value)}")
     if shape is not None and array.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got shape {array.shape}: {short(value)}")
     if not np.all(np.isfinite(array)):
@@ -58,10 +68,10 @@ def number(name: str, value, *, positive: bool = False, nonnegative: bool = Fals
     if isinstance(value, (bool, np.bool_)):
         raise ValueError(f"{name} must be a number, got the boolean {value!r}")
     not_text(name, value)
-    try:
-        result = float(np.asarray(value, dtype=float).reshape(()))
-    except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"{name} must be a single real number, got {short(value)}") from None
+    array = floats(value)
+    if array is None or array.size != 1:
+        raise ValueError(f"{name} must be a single real number, got {short(value)}")
+    result = float(array.reshape(()))
     if not np.isfinite(result):
         raise ValueError(f"{name} must be finite, got {value!r}")
     if positive and not result > 0:
@@ -126,10 +136,10 @@ def times(t, increasing: bool = False) -> np.ndarray:
     if t is None:
         raise ValueError("t must be a time in seconds (a number or an array of them), got None")
     not_text("t", t)
-    try:
-        t = np.asarray(t, dtype=float)
-    except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"t must be a time in seconds (a number or an array of them), got {short(t)}") from None
+    values = floats(t)
+    if values is None:
+        raise ValueError(f"t must be a time in seconds (a number or an array of them), got {short(t)}")
+    t = values
     if not np.isfinite(t).all():
         raise ValueError(f"t must be finite, got {short(t)}")
     if increasing and t.ndim == 1 and not np.all(np.diff(t) > 0):

@@ -170,11 +170,10 @@ def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.nda
         )
     if validate.is_complex(value):
         raise StudentError(complex_message(fname))
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError, OverflowError):
+    arr = validate.floats(value)
+    if arr is None:
         shown = f" {validate.short(value)}" if isinstance(value, (list, tuple, np.ndarray)) else ""
-        raise StudentError(f"{fname} returned {type(value).__name__}{shown}, expected {size} numbers") from None
+        raise StudentError(f"{fname} returned {type(value).__name__}{shown}, expected {size} numbers")
     if arr.size == size:  # a row or a column of the right numbers (np.matrix, x[:, None]): as simulate takes it
         arr = arr.reshape(size)
     if arr.shape != (size,):

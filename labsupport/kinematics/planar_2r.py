@@ -90,11 +90,10 @@ def _q(q, name="q") -> np.ndarray:
             f"{name} must be positions, got a whole Reference (position, velocity, "
             f"acceleration): pass its position, ref.pos"
         )
-    try:
-        q = np.asarray(q, dtype=float)
-    except (TypeError, ValueError, OverflowError):
-        message = f"{name} must be numbers of shape (..., 2), got {q!r}"
-        raise ValueError(message) from None
+    values = validate.floats(q)
+    if values is None:
+        raise ValueError(f"{name} must be numbers of shape (..., 2), got {q!r}")
+    q = values
     if q.shape[-1:] != (2,):
         raise ValueError(
             f"{name} must have 2 components on its last axis, got shape {q.shape}"
