@@ -55,8 +55,18 @@ def vector(name: str, value, shape) -> np.ndarray:
     if shape is not None and array.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got shape {array.shape}: {short(value)}")
     if not np.all(np.isfinite(array)):
-        raise ValueError(f"{name} must be finite, got {short(array)}")
+        raise ValueError(f"{name} must be finite, got {short(value)}{none_note(value)}")
     return array
+
+
+def none_note(value) -> str:
+    """A remark for a message about a value that is not finite: where it holds ``None``
+    (which NumPy reads as NaN), say so, since the user wrote None, not NaN."""
+    try:
+        holds_none = any(v is None for v in np.asarray(value, dtype=object).ravel())
+    except (TypeError, ValueError):
+        return ""
+    return " (None is not a number: a value never set?)" if holds_none else ""
 
 
 def number(name: str, value, *, positive: bool = False, nonnegative: bool = False) -> float:

@@ -11,6 +11,7 @@ import pytest
 
 import labsupport  # noqa: F401  (before mujoco)
 from labsupport import actuators, book, dynamics, metrics, render, sim, trajectories, validate
+from labsupport.grading import feedback
 from labsupport.plants import load_model
 
 RAGGED = [[1.0, 2.0], [3.0]]
@@ -81,6 +82,10 @@ CASES = {
         "qp must be a whole number from 0 to 51, got -1",
     ),
     "text alternative an array": (lambda a, g: book.text_alternative(np.ones(3)), "needs a text alternative"),
+    "initial state holding None": (
+        lambda a, g: sim.simulate(*a, lambda m, d: d.qfrc_bias.copy(), 0.01, q0=[0.1, None]),
+        r"q0 must be finite, got \[0.1, None\] \(None is not a number: a value never set\?\)",
+    ),
     "site poses not finite": (
         lambda a, g: sim.site_positions(a[0], [[0.1, 0.2], [np.nan, 0.0]], 0),
         "q must be finite: row 1 is not",
@@ -93,6 +98,14 @@ def test_a_bad_argument_is_named_by_the_package(arm, log, call, message):
     with pytest.raises(ValueError, match=message) as err:
         call(arm, log)
     assert "labsupport" in err.traceback[-1].path.parts, f"raised from {err.traceback[-1].path}, not the package"
+
+
+def test_a_returned_none_inside_a_list_is_named_as_none_not_nan():
+    """NumPy reads None as NaN; the student wrote None, and the check's message says so."""
+    with pytest.raises(feedback.StudentError, match=r"contains None: \[0.1, 0.2, None\] \(None is not a number"):
+        feedback.as_vector("ik_3r", [0.1, 0.2, None], 3)
+    with pytest.raises(feedback.StudentError, match=r"contains NaN: \[0.1 nan\]$"):
+        feedback.as_vector("ik_3r", np.array([0.1, np.nan]), 2)
 
 
 def test_the_checks_keep_what_they_should_accept():

@@ -178,10 +178,11 @@ def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.nda
         arr = arr.reshape(size)
     if arr.shape != (size,):
         raise StudentError(f"the {what} from {fname} has shape {arr.shape}, expected ({size},): {size} numbers")
-    if np.any(np.isnan(arr)):
-        raise StudentError(f"the {what} from {fname} contains NaN: {np.array2string(arr, precision=3)}")
     if not np.all(np.isfinite(arr)):
-        raise StudentError(f"the {what} from {fname} is not finite: {np.array2string(arr, precision=3)}")
+        note = validate.none_note(value)
+        problem = "contains None" if note else "contains NaN" if np.any(np.isnan(arr)) else "is not finite"
+        shown = validate.short(value) if isinstance(value, (list, tuple)) else np.array2string(arr, precision=3)
+        raise StudentError(f"the {what} from {fname} {problem}: {shown}{note}")
     return arr
 
 
