@@ -31,6 +31,16 @@ NVIDIA_EGL_ADVICE = (
     "which mounts the driver's OpenGL and EGL libraries; elsewhere, install the driver's OpenGL/EGL package"
 )
 
+#: glvnd's EGL loader: the library that MuJoCo's EGL back end opens (through PyOpenGL), and that in
+#: turn loads a driver's EGL library (NVIDIA's, or Mesa's).
+EGL_LOADER = "libEGL.so.1"
+#: What to do where NVIDIA's EGL library is there but the loader is not (see :func:`egl_loader_missing`).
+EGL_LOADER_ADVICE = (
+    f"NVIDIA's EGL library ({NVIDIA_EGL_LIBRARY}) is here, but not the EGL loader ({EGL_LOADER}) that "
+    "opens it: install the loader (Debian/Ubuntu: `sudo apt-get install libegl1`) and restart the "
+    "kernel to render on the GPU"
+)
+
 
 def on_linux() -> bool:
     """True on Linux, where ``MUJOCO_GL`` must name a backend; elsewhere MuJoCo's default renders."""
@@ -63,6 +73,13 @@ def nvidia_egl_missing() -> bool:
     not load: a container started without the driver's graphics libraries, typically. EGL then
     renders, if at all, through Mesa in software."""
     return any(Path(f).exists() for f in NVIDIA_DRIVER_FILES) and not library_loads(NVIDIA_EGL_LIBRARY)
+
+
+def egl_loader_missing() -> bool:
+    """True when NVIDIA's EGL library loads but glvnd's loader (:data:`EGL_LOADER`) does not: a GPU
+    machine or container image with the driver's libraries and without the ``libegl1`` package.
+    EGL cannot open at all then, and installing the loader makes it render on the GPU."""
+    return not library_loads(EGL_LOADER) and library_loads(NVIDIA_EGL_LIBRARY)
 
 
 def list_nvidia_egl() -> bool:
@@ -168,6 +185,8 @@ def select_backend() -> str | None:
     notes = " (NVIDIA's EGL listed by labsupport)" if on_linux() and list_nvidia_egl() else ""
     if on_linux() and nvidia_egl_missing():
         notes += f"; {NVIDIA_EGL_ADVICE}"
+    elif on_linux() and egl_loader_missing():
+        notes += f"; {EGL_LOADER_ADVICE}"
     if "MUJOCO_GL" in os.environ:
         last_choice = f"MUJOCO_GL={os.environ['MUJOCO_GL']} was set before labsupport was imported{notes}"
         return os.environ["MUJOCO_GL"]

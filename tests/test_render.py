@@ -166,6 +166,22 @@ def test_a_gpu_without_its_egl_library_is_named_with_what_to_do(fresh_backend_ch
     assert gl.select_backend() is None and "NVIDIA" not in gl.last_choice  # no GPU: no such advice
 
 
+def test_a_gpu_without_the_egl_loader_is_told_to_install_it(fresh_backend_choice, tmp_path):
+    """NVIDIA's EGL library present, glvnd's libEGL.so.1 absent (an NVIDIA machine without the
+    libegl1 package): no backend works, and the report names the one package that fixes it."""
+    unset_env(fresh_backend_choice, "__EGL_VENDOR_LIBRARY_FILENAMES", "__EGL_VENDOR_LIBRARY_DIRS")
+    fresh_backend_choice.setattr(gl, "on_linux", lambda: True)
+    fresh_backend_choice.setattr(gl, "NVIDIA_DRIVER_FILES", (str(tmp_path / "absent"),))
+    fresh_backend_choice.setattr(gl, "GLVND_EGL_VENDOR_DIRS", (str(tmp_path),))
+    for works in ("egl_works", "osmesa_works", "display_open"):
+        fresh_backend_choice.setattr(gl, works, lambda: False)
+    fresh_backend_choice.setattr(gl, "library_loads", lambda name: name == gl.NVIDIA_EGL_LIBRARY)
+    assert gl.select_backend() is None
+    assert "but not the EGL loader (libEGL.so.1)" in gl.last_choice and "apt-get install libegl1" in gl.last_choice
+    fresh_backend_choice.setattr(gl, "library_loads", lambda name: True)  # the loader is there: no such advice
+    assert gl.select_backend() is None and "EGL loader" not in gl.last_choice
+
+
 def test_rendering_on_the_cpu_beside_an_unusable_gpu_says_why(monkeypatch, tmp_path):
     """Mesa's EGL renders but the GPU sits idle, or nothing renders: either way the GPU's
     missing EGL library is named, with what to do."""
