@@ -321,6 +321,8 @@ def circle_tracking_figure(runs: Mapping[str, object], desired_path):
         ax.plot(log.t, 1000 * np.linalg.norm(log.err, axis=1), style, color=color, lw=1.2, label=label)
     ax.set(xlabel="time [s]", ylabel=r"$|x_d - x|$ [mm]", title="Cartesian error")
     ax = axes["torques"]
+    # each run narrower than the one before, drawn over it: where their torques coincide (as the
+    # lab's two laws' do), the earlier run still shows as a band around the later one
     for (i, (label, log)), marker in zip(enumerate(runs.items()), itertools.cycle(_RUN_MARKERS)):
         for j, style in enumerate(("-", "--")):
             ax.plot(
@@ -330,7 +332,7 @@ def circle_tracking_figure(runs: Mapping[str, object], desired_path):
                 color=f"C{i}",
                 marker=marker,
                 markevery=0.1,
-                lw=1,
+                lw=max(3.0 - 2.0 * i, 1.0),
                 label=rf"{label} $\tau_{j + 1}$",
             )
     ax.set(xlabel="time [s]", ylabel=r"$\tau$ [N·m]", title="joint torques")

@@ -1,6 +1,7 @@
 """labsupport.book.show_figure: the figure and its text alternative travel together."""
 
 import base64
+import dataclasses
 
 import matplotlib
 
@@ -186,7 +187,6 @@ def test_the_shared_figures_fit_the_text_column(name, dpi):
     notebook's inline backend saves it (tight box, 0.1 in of padding): the page shows it
     unscaled, so its tick labels and legends keep their size. The circle figure used to be
     961 px wide and Task 1's side-by-side ones 910 px, shown at 78 % and 83 %."""
-    import dataclasses
     import io
 
     t = np.linspace(0.0, 1.0, 11)
@@ -205,6 +205,21 @@ def test_the_shared_figures_fit_the_text_column(name, dpi):
     plt.close(fig)
     width = int.from_bytes(buffer.getvalue()[16:20], "big")
     assert plots.TEXT_COLUMN_PX - 40 <= width <= plots.TEXT_COLUMN_PX, width
+
+
+def test_coinciding_torques_of_two_runs_both_stay_visible():
+    """Task 3's two laws give the same torques: the second run's lines used to hide the first's
+    completely. Each run is now drawn narrower than the one before, over it."""
+    t = np.linspace(0.0, 1.0, 11)
+    log = dataclasses.replace(_log(t, 0.1, 2), err=np.zeros((t.size, 2)))
+    fig = plots.circle_tracking_figure({"OS-CT": log, "IK": log}, log.ee[:, :2])
+    torques = next(ax for ax in fig.axes if ax.get_title() == "joint torques")
+    widths = {line.get_label(): line.get_linewidth() for line in torques.get_lines()}
+    plt.close(fig)
+    for j in (1, 2):
+        assert widths[rf"OS-CT $\tau_{j}$"] >= 2 * widths[rf"IK $\tau_{j}$"], widths
+    order = [line.get_label() for line in torques.get_lines()]
+    assert order.index(r"OS-CT $\tau_1$") < order.index(r"IK $\tau_1$")  # the wide one underneath
 
 
 def test_a_one_joint_set_point_gives_one_error_curve_and_misuse_is_named():
