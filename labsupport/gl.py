@@ -170,7 +170,8 @@ last_choice: str = "select_backend() has not run"
 
 
 def select_backend() -> str | None:
-    """Set ``MUJOCO_GL`` (and ``PYOPENGL_PLATFORM``) unless the user already chose.
+    """Set ``MUJOCO_GL`` (and ``PYOPENGL_PLATFORM``) unless the user already chose (an empty
+    ``MUJOCO_GL`` counts as no choice).
 
     On Linux, EGL is taken if it really opens a display (:func:`egl_works`), else OSMesa if it
     really creates a context (:func:`osmesa_works`), else GLFW if a desktop display is open,
@@ -187,7 +188,7 @@ def select_backend() -> str | None:
         notes += f"; {NVIDIA_EGL_ADVICE}"
     elif on_linux() and egl_loader_missing():
         notes += f"; {EGL_LOADER_ADVICE}"
-    if "MUJOCO_GL" in os.environ:
+    if os.environ.get("MUJOCO_GL", "").strip():  # empty is no choice: MuJoCo would take GLFW's default
         last_choice = f"MUJOCO_GL={os.environ['MUJOCO_GL']} was set before labsupport was imported{notes}"
         return os.environ["MUJOCO_GL"]
     if "mujoco" in sys.modules:

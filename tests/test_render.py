@@ -149,6 +149,16 @@ def test_select_backend_reports_when_nothing_works(fresh_backend_choice):
     assert "MUJOCO_GL" not in os.environ
 
 
+def test_an_empty_mujoco_gl_is_no_choice(fresh_backend_choice):
+    """``MUJOCO_GL=`` (exported empty) used to count as the user's choice: nothing was chosen, and
+    MuJoCo would have tried GLFW, which needs a display. Now the backend is chosen as if unset."""
+    fresh_backend_choice.setenv("MUJOCO_GL", " ")
+    fresh_backend_choice.setattr(gl, "on_linux", lambda: True)
+    fresh_backend_choice.setattr(gl, "egl_works", lambda: True)
+    assert gl.select_backend() == "egl" and os.environ["MUJOCO_GL"] == "egl"
+    assert gl.last_choice.startswith("MUJOCO_GL=egl (tried first: nothing)")
+
+
 def test_a_gpu_without_its_egl_library_is_named_with_what_to_do(fresh_backend_choice, tmp_path):
     """A container started without NVIDIA's graphics libraries used to get Mesa's advice only."""
     driver = tmp_path / "version"
