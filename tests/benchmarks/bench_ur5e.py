@@ -124,13 +124,26 @@ def main() -> dict:
         frames_time = min(seconds(lambda: render.render_run(model, log, fps=fps, progress=False)) for _ in range(2))
         frames = int(DURATION * fps)
         result["render_frames_per_s"] = frames / frames_time
+        result["renderer"] = gl_renderer(model)
         print(
             f"  render 320x240 with traces            {frames / frames_time:9.1f} frames/s "
-            f"({frames} frames in {frames_time:.1f} s)"
+            f"({frames} frames in {frames_time:.1f} s) on {result['renderer']}"
         )
     except render.RenderingUnavailable as err:
         print(f"  render: unavailable ({err})")
     return result
+
+
+def gl_renderer(model) -> str:
+    """The OpenGL renderer that MuJoCo's offscreen context runs on: a GPU's name, or Mesa's
+    llvmpipe in software. The frame rate means little without it."""
+    from OpenGL import GL  # here, not on top: after labsupport has chosen PyOpenGL's platform
+
+    renderer = render.make_renderer(model, 16, 16)
+    try:
+        return GL.glGetString(GL.GL_RENDERER).decode()
+    finally:
+        renderer.close()
 
 
 if __name__ == "__main__":
