@@ -181,8 +181,7 @@ def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.nda
     if not np.all(np.isfinite(arr)):
         note = validate.none_note(value)
         problem = "contains None" if note else "contains NaN" if np.any(np.isnan(arr)) else "is not finite"
-        shown = validate.short(value) if isinstance(value, (list, tuple)) else np.array2string(arr, precision=3)
-        raise StudentError(f"the {what} from {fname} {problem}: {shown}{note}")
+        raise StudentError(f"the {what} from {fname} {problem}: {validate.short(value)}{note}")
     return arr
 
 
