@@ -363,6 +363,9 @@ _CONTROLLER_ERRORS = (
     AttributeError,
     ArithmeticError,
 )
+#: How the loop's message begins when it says a controller's error again (the Problems' checks
+#: recognise the loop's message by it, and show it as it is).
+CONTROLLER_RAISED = "the controller raised"
 
 
 def _controller_failed(err: Exception, model: mujoco.MjModel, data: mujoco.MjData) -> Exception:
@@ -371,7 +374,7 @@ def _controller_failed(err: Exception, model: mujoco.MjModel, data: mujoco.MjDat
     time it happened at; for a shape mismatch (a NumPy broadcast error from inside a law) or an
     index out of range also the sizes the model's state has."""
     kind = TypeError if isinstance(err, TypeError) else ValueError
-    message = f"the controller raised {type(err).__name__} at t = {data.time:.4f} s: {str(err).rstrip()}"
+    message = f"{CONTROLLER_RAISED} {type(err).__name__} at t = {data.time:.4f} s: {str(err).rstrip()}"
     if isinstance(err, np.linalg.LinAlgError):
         message += (
             ". A matrix the law solves with or inverts is singular here: the Jacobian when the arm is stretched "

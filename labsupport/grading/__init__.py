@@ -37,7 +37,7 @@ from labsupport.grading.feedback import (
     where_raised,
 )
 from labsupport.grading.stability import Trace, explain_divergence
-from labsupport.sim import SimulationDiverged
+from labsupport.sim import CONTROLLER_RAISED, SimulationDiverged
 
 #: Set in the batch grader's sandbox: in-notebook checks then stay quiet (the grader runs its own).
 BATCH_ENV = "LABSUPPORT_GRADING_BATCH"
@@ -142,6 +142,6 @@ def attempt(label: str, run: Callable, controller: StudentController | None = No
         )
     except Exception as err:  # the student's code may raise anything
         where = where_raised(err.__cause__ or err)  # simulate says the controller's error again, with its time
-        said = str(err) if str(err).startswith("the controller raised") else f"it raised {type(err).__name__}: {err}"
+        said = str(err) if str(err).startswith(CONTROLLER_RAISED) else f"it raised {type(err).__name__}: {err}"
         print(f"{label}: skipped, {said}{where}")
     return None
