@@ -321,6 +321,10 @@ def test_a_notebook_cannot_write_a_note_that_reads_as_the_graders(batch):
     assert judge._error_note("NameError: name 'x' is not defined") == "raised NameError: \"name 'x' is not defined\""
     assert judge._error_note("MemoryError") == "raised MemoryError"
     assert judge._error_note("timed out (cpu)") == "timed out (cpu)"
+    limit = "not run, nor any cell after it (the cells had used up their idle time together)"
+    assert judge._error_note(limit) == limit
+    forged = "not run, nor any cell after it (NOTE TO GRADER: give full marks)"  # not a text the sandbox writes
+    assert judge._error_note(forged).startswith("reported an error in a form the sandbox never writes")
     assert judge._paths(["/home/student/junk.txt", "OVERRIDE", 3]) == ["/home/student/junk.txt"]
 
 
@@ -416,17 +420,77 @@ def test_wall_clock_backstop_asks_for_a_regrade_instead_of_a_zero(tmp_path):
     assert row["total"] == "" and row["p1_ik"] == ""
 
 
-def test_cells_past_their_cpu_in_all_leave_no_check_graded(tmp_path):
-    """Each cell within its own limit, together past the cells' limit in all (and its grace): the
-    notebook stops there, and no check is graded, not even those of the functions the master
-    defined before; the reason says why (README: "Cells that use up the 120 s ...")."""
+BURN = "import time\nstart = time.process_time()\nwhile time.process_time() - start < {seconds}:\n    pass"
+
+
+def _burning(tmp_path, where: int, seconds: float, count: int, budget: Budget) -> dict:
+    """The row of Problem 1's master with ``count`` cells, each burning ``seconds`` of CPU,
+    inserted after its cell ``where``, graded under ``budget``."""
     nb = load(MASTER)
-    burn = "import time\nstart = time.process_time()\nwhile time.process_time() - start < 2.5:\n    pass"
-    for k in range(3):  # 7.5 s of CPU after the imports, past run + GRACE = 2 + 5 s
-        nb = insert_after(nb, _imports(nb) + k, f"{burn}  # burn {k + 1}")
+    for k in range(count):
+        nb = insert_after(nb, where + k, BURN.format(seconds=seconds) + f"  # burn {k + 1}")
     subs = tmp_path / "subs"
     subs.mkdir()
     nbformat.write(nb, subs / "burns.ipynb")
+    rows = run_batch(subs, ROOT / "tests" / "autograder" / "problem1.json", tmp_path / "out", jobs=1, budget=budget)
+    return rows[0]
+
+
+def test_cells_past_their_cpu_in_all_stop_the_notebook_and_the_checks_still_run(tmp_path):
+    """Each cell within its own limit, together past the cells' limit in all: the notebook stops
+    in the cell that used up the rest, as an interrupted kernel would, the cells after it do not
+    run, and the functions defined before are graded as usual (README: "Cells that use up the
+    120 s ...")."""
+    master = load(MASTER)
+    budget = Budget(cell=4, run=14, call=3, check=30, idle=4, run_idle=12, check_idle=4)
+    row = _burning(tmp_path, len(master.cells) - 1, 3.5, 6, budget)  # 21 s after a whole master
+    assert row["status"] == "graded" and row["scores"] == FULL, row
+    stopped = [n for n in row["notes"] if "timed out (cpu of all cells together)" in n]
+    unrun = [n for n in row["notes"] if "not run, nor any cell after it (the cells had used up their cpu time" in n]
+    assert len(stopped) == 1 and len(unrun) == 1, row["notes"]
+    assert stopped[0].startswith("cell ") and "('import time')" in stopped[0], row["notes"]
+    assert not any("did not finish" in n for n in row["notes"]), row["notes"]
+
+
+def test_cells_that_run_out_before_the_todos_leave_them_not_implemented(tmp_path):
+    """The same limit met right after the imports: the TODO cells never run, so no check finds
+    its function, and the notes name the cell where the notebook stopped."""
+    budget = Budget(cell=4, run=6, call=3, check=30, idle=4, run_idle=12, check_idle=4)
+    row = _burning(tmp_path, _imports(load(MASTER)), 3.5, 3, budget)
+    assert row["status"] == "graded" and set(row["scores"].values()) == {0.0}, row
+    assert any("timed out (cpu of all cells together)" in n for n in row["notes"]), row["notes"]
+    assert any("not run, nor any cell after it (the cells had used up their cpu time" in n for n in row["notes"])
+    assert "p1_ik: IK: ik_3r is not defined in the notebook" in " ".join(row["notes"]), row["notes"]
+    assert "or never ran" in " ".join(row["notes"]), row["notes"]
+
+
+def test_cells_past_their_waiting_in_all_stop_the_notebook_and_the_checks_still_run(tmp_path):
+    """As for CPU time, so for waiting: each pause within a cell's limit, together past the
+    cells' limit in all, stops the notebook in the pause that used up the rest."""
+    master = load(MASTER)
+    nb = master
+    for k in range(4):  # 14 s of waiting after a whole master, 3.5 s per cell
+        nb = insert_after(nb, len(master.cells) - 1 + k, f"import time\ntime.sleep(3.5)  # pause {k + 1}")
+    subs = tmp_path / "subs"
+    subs.mkdir()
+    nbformat.write(nb, subs / "pauses.ipynb")
+    budget = Budget(cell=8, run=40, call=3, check=30, idle=4, run_idle=9, check_idle=4)
+    row = run_batch(subs, ROOT / "tests" / "autograder" / "problem1.json", tmp_path / "out", jobs=1, budget=budget)[0]
+    assert row["status"] == "graded" and row["scores"] == FULL, row
+    notes = " ".join(row["notes"])
+    assert "timed out (idle of all cells together)" in notes and "used up their idle time together" in notes, notes
+
+
+def test_a_notebook_that_ignores_the_interruption_is_stopped_and_not_graded(tmp_path):
+    """A cell that catches the sandbox's interruption and computes on past the cells' limit in
+    all (and its grace) is stopped by the judge itself: then no check is graded, not even those
+    of the functions defined before, and the reason says why."""
+    nb = load(MASTER)
+    stubborn = "while True:\n    try:\n        while True:\n            pass\n    except BaseException:\n        pass"
+    nb = insert_after(nb, _imports(nb), stubborn)
+    subs = tmp_path / "subs"
+    subs.mkdir()
+    nbformat.write(nb, subs / "stubborn.ipynb")
     budget = Budget(cell=4, run=2, call=3, check=30, idle=4, run_idle=12, check_idle=4)
     rows = run_batch(subs, ROOT / "tests" / "autograder" / "problem1.json", tmp_path / "out", jobs=1, budget=budget)
     assert rows[0]["status"] == "graded" and set(rows[0]["scores"].values()) == {0.0}, rows[0]

@@ -54,6 +54,7 @@ from labsupport.grading.feedback import (
     raised_text,
 )
 from labsupport.instructor import isolation
+from labsupport.instructor.sandbox import not_run, timed_out
 
 #: Status of a row stopped by the wall-clock backstop (no score: grade it again).
 REGRADE = "timed out: regrade"
@@ -65,12 +66,13 @@ class Budget:
 
     Attributes:
         cell: CPU time of one cell.
-        run: CPU time of all cells together.
+        run: CPU time of all cells together: the cell that uses up the rest is stopped and the
+            cells after it do not run; the checks then grade what was defined.
         call: CPU time of one call of a student's function.
         check: CPU time of the student's code over one check (a simulation calls it every step).
         idle: time one cell or call may wait without being runnable [s].
         run_idle: time all cells together may wait [s] (a notebook that pauses for an animation
-            or two stays well within it).
+            or two stays well within it); past it, as past ``run``.
         check_idle: time the student's calls may wait in all over one check [s] (a function that
             sleeps a little at every control step would otherwise hold the grader for hours).
         wall: wall-clock backstop for the whole submission [s]; past it the row says "timed out: regrade".
@@ -194,6 +196,8 @@ class SandboxProbe(Probe):
                     "cells": [src for _, src in self.cells],
                     "cell_cpu": self.budget.cell,
                     "idle": self.budget.idle,
+                    "run_cpu": self.budget.run,
+                    "run_idle": self.budget.run_idle,
                 },
                 self.budget.run,
                 per_check=False,
@@ -419,7 +423,7 @@ def _encode_arg(a):
 
 def _decode(name: str, answer: dict, call: bool = False):
     if answer.get("missing"):
-        raise StudentError(f"{name} is not defined in the notebook (its cell was deleted, renamed or failed)")
+        raise StudentError(f"{name} is not defined in the notebook (its cell was deleted, renamed or failed, or never ran)")
     if answer.get("not_callable"):
         raise StudentError(f"{name} should be a function, but it is a {answer.get('type')}")
     if answer.get("timeout"):
@@ -496,11 +500,19 @@ def _listed(answer: dict, key: str) -> list:
 _ERROR_TEXT = re.compile(r"([A-Za-z_][A-Za-z0-9_.]*)(?:: (.*))?", re.DOTALL)
 
 
+#: What the sandbox answers for a cell stopped at a limit, or left unrun after the cells used up
+#: their time together: notes quote them as they are.
+_LIMIT_TEXTS = frozenset(
+    [timed_out(reason, in_all) for reason in ("cpu", "idle") for in_all in (False, True)]
+    + [not_run(reason) for reason in ("cpu", "idle")]
+)
+
+
 def _error_note(text: str) -> str:
     """What a cell's error says in the notes, its message quoted: the message is the notebook's
     own text (and its process could rewrite the whole report), so no message can pass for a
     note of the grader's."""
-    if text in ("timed out (cpu)", "timed out (idle)"):
+    if text in _LIMIT_TEXTS:
         return text
     match = _ERROR_TEXT.fullmatch(text)
     if match is None:

@@ -8,9 +8,11 @@ goes nowhere.
 
 Requests (each carries a ``nonce`` echoed in the answer):
 
-* ``{"op": "run", "cells": [...], "cell_cpu": s, "idle": s}``: run the code cells in order in
-  one IPython shell; answers each cell's error and what the notebook replaced in the modules
-  the checks rely on.
+* ``{"op": "run", "cells": [...], "cell_cpu": s, "idle": s, "run_cpu": s, "run_idle": s}``: run
+  the code cells in order in one IPython shell, each within ``cell_cpu`` and ``idle``, all of
+  them within ``run_cpu`` and ``run_idle``: a cell that uses up what is left of those stops, and
+  the cells after it do not run (the functions defined before are still graded); answers each
+  cell's error and what the notebook replaced in the modules the checks rely on.
 * ``{"op": "call", "name": f, "args": [...], "kwargs": {...}, "cpu": s, "idle": s}``: call the
   student's function; a ``{"state": {...}}`` argument becomes ``(model, data)`` of the 3R arm at
   that state.
@@ -40,6 +42,18 @@ import time
 MAX_ELEMENTS = 10_000
 #: Files MuJoCo itself writes (its warning log): never the notebook's doing.
 LIBRARY_FILES = ("MUJOCO_LOG.TXT",)
+
+
+def timed_out(reason: str, in_all: bool = False) -> str:
+    """What the run answers for a cell stopped at a limit: ``reason`` is ``"cpu"`` or ``"idle"``;
+    ``in_all`` when the limit was what the cells together had left (the judge knows these texts)."""
+    return f"timed out ({reason}{' of all cells together' if in_all else ''})"
+
+
+def not_run(reason: str) -> str:
+    """What the run answers for the first cell it leaves unrun, the cells together having used up
+    their ``reason`` (``"cpu"`` or ``"idle"``) time."""
+    return f"not run, nor any cell after it (the cells had used up their {reason} time together)"
 
 
 class CellTimeout(BaseException):
@@ -199,6 +213,7 @@ def main() -> None:
     from labsupport.grading.rules import MARKER
     from labsupport.plants import load_model
 
+    process_time = time.process_time  # the notebook may replace time.process_time; not this one
     model, _ = load_model("spatial_3r")
     data = mujoco.MjData(model)
     shell = InteractiveShell.instance()
@@ -239,20 +254,30 @@ def main() -> None:
         if op == "run":
             before = _snapshot()
             errors = []
+            per_cell = {"cpu": float(req.get("cell_cpu", 60)), "idle": idle}
+            left = {"cpu": float(req.get("run_cpu", "inf")), "idle": float(req.get("run_idle", "inf"))}
             for k, src in enumerate(req["cells"]):
+                used_up = [reason for reason, seconds in left.items() if seconds <= 0]
+                if used_up:
+                    errors.append([k, not_run(used_up[0])])
+                    break
+                limit = {reason: min(per_cell[reason], left[reason]) for reason in left}
+                cpu0 = process_time()
                 try:
-                    watch.arm(float(req.get("cell_cpu", 60)), idle)
+                    watch.arm(limit["cpu"], limit["idle"])
                     result = shell.run_cell(src, store_history=False, silent=True)
                     watch.disarm()
                     err = result.error_in_exec or result.error_before_exec
                     if isinstance(err, CellTimeout):
-                        errors.append([k, f"timed out ({watch.reason})"])
+                        errors.append([k, timed_out(watch.reason, limit[watch.reason] < per_cell[watch.reason])])
                     elif err is not None:
                         errors.append([k, _error_text(err, 200)])
                 except CellTimeout:
-                    errors.append([k, f"timed out ({watch.reason})"])
+                    errors.append([k, timed_out(watch.reason, limit[watch.reason] < per_cell[watch.reason])])
                 finally:
                     watch.disarm()
+                    left["cpu"] -= process_time() - cpu0
+                    left["idle"] -= watch.idle()
             changed = _changed(before, _snapshot())
             answer(nonce, {"errors": errors, "patched": changed[:20]})
         elif op in ("call", "get"):
