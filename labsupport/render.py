@@ -95,7 +95,7 @@ def make_renderer(model: mujoco.MjModel, width: int = 320, height: int = 240) ->
     width, height = validate.whole("width", width, 1), validate.whole("height", height, 1)
     if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
         raise ValueError(
-            f"{width}x{height} is larger than the model's offscreen buffer "
+            f"{validate.short(width)} x {validate.short(height)} is larger than the model's offscreen buffer "
             f"({model.vis.global_.offwidth}x{model.vis.global_.offheight}); "
             "pick a smaller size or raise <visual><global offwidth offheight>"
         )

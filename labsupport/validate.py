@@ -244,12 +244,15 @@ def real(returned: str, value) -> None:
 
 
 def short(value) -> str:
-    """``value`` for an error message: 4 digits, long arrays elided, 200 characters at most."""
+    """``value`` for an error message: 4 digits, long arrays elided, an integer of more than 30
+    digits by its number of digits, 200 characters at most."""
     try:
+        if isinstance(value, int) and abs(value) >= 10**30:
+            return f"an integer of {len(str(abs(value)))} digits"
         with np.printoptions(precision=4, threshold=12, edgeitems=3):
             text = repr(value) if not isinstance(value, np.ndarray) else np.array2string(value)
     except ValueError:  # an integer of more digits than Python will print
-        text = f"a {type(value).__name__} too large to print"
+        text = "a number too large to print"
     return text if len(text) <= 200 else text[:197] + "..."
 
 

@@ -423,7 +423,9 @@ def _encode_arg(a):
 
 def _decode(name: str, answer: dict, call: bool = False):
     if answer.get("missing"):
-        raise StudentError(f"{name} is not defined in the notebook (its cell was deleted, renamed or failed, or never ran)")
+        raise StudentError(
+            f"{name} is not defined in the notebook (its cell was deleted, renamed or failed, or never ran)"
+        )
     if answer.get("not_callable"):
         raise StudentError(f"{name} should be a function, but it is a {answer.get('type')}")
     if answer.get("timeout"):
