@@ -10,7 +10,8 @@ Requests (each carries a ``nonce`` echoed in the answer):
 
 * ``{"op": "run", "cells": [...], "cell_cpu": s, "idle": s, "run_cpu": s, "run_idle": s}``: run
   the code cells in order in one IPython shell, each within ``cell_cpu`` and ``idle``, all of
-  them within ``run_cpu`` and ``run_idle``: a cell that uses up what is left of those stops, and
+  them within ``run_cpu`` (counted from the sandbox's start, as the judge counts it) and
+  ``run_idle``: a cell that uses up what is left of those stops, and
   the cells after it do not run (the functions defined before are still graded); answers each
   cell's error and what the notebook replaced in the modules the checks rely on.
 * ``{"op": "call", "name": f, "args": [...], "kwargs": {...}, "cpu": s, "idle": s}``: call the
@@ -255,7 +256,8 @@ def main() -> None:
             before = _snapshot()
             errors = []
             per_cell = {"cpu": float(req.get("cell_cpu", 60)), "idle": idle}
-            left = {"cpu": float(req.get("run_cpu", "inf")), "idle": float(req.get("run_idle", "inf"))}
+            # CPU time counted from the process's start, imports included, as the judge counts it
+            left = {"cpu": float(req.get("run_cpu", "inf")) - process_time(), "idle": float(req.get("run_idle", "inf"))}
             for k, src in enumerate(req["cells"]):
                 used_up = [reason for reason, seconds in left.items() if seconds <= 0]
                 if used_up:
