@@ -264,6 +264,7 @@ def main() -> None:
                     errors.append([k, not_run(used_up[0])])
                     break
                 limit = {reason: min(per_cell[reason], left[reason]) for reason in left}
+                in_all = {reason: limit[reason] < per_cell[reason] for reason in limit}  # which limit binds
                 cpu0 = process_time()
                 try:
                     watch.arm(limit["cpu"], limit["idle"])
@@ -271,11 +272,11 @@ def main() -> None:
                     watch.disarm()
                     err = result.error_in_exec or result.error_before_exec
                     if isinstance(err, CellTimeout):
-                        errors.append([k, timed_out(watch.reason, limit[watch.reason] < per_cell[watch.reason])])
+                        errors.append([k, timed_out(watch.reason, in_all.get(watch.reason, False))])
                     elif err is not None:
                         errors.append([k, _error_text(err, 200)])
                 except CellTimeout:
-                    errors.append([k, timed_out(watch.reason, limit[watch.reason] < per_cell[watch.reason])])
+                    errors.append([k, timed_out(watch.reason, in_all.get(watch.reason, False))])
                 finally:
                     watch.disarm()
                     left["cpu"] -= process_time() - cpu0
