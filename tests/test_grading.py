@@ -423,17 +423,21 @@ def test_wall_clock_backstop_asks_for_a_regrade_instead_of_a_zero(tmp_path):
 BURN = "import time\nstart = time.process_time()\nwhile time.process_time() - start < {seconds}:\n    pass"
 
 
+def _graded(tmp_path, nb, budget: Budget) -> dict:
+    """The row of the Problem 1 notebook ``nb``, graded alone under ``budget``."""
+    subs = tmp_path / "subs"
+    subs.mkdir()
+    nbformat.write(nb, subs / "submission.ipynb")
+    return run_batch(subs, ROOT / "tests" / "autograder" / "problem1.json", tmp_path / "out", jobs=1, budget=budget)[0]
+
+
 def _burning(tmp_path, where: int, seconds: float, count: int, budget: Budget) -> dict:
     """The row of Problem 1's master with ``count`` cells, each burning ``seconds`` of CPU,
     inserted after its cell ``where``, graded under ``budget``."""
     nb = load(MASTER)
     for k in range(count):
         nb = insert_after(nb, where + k, BURN.format(seconds=seconds) + f"  # burn {k + 1}")
-    subs = tmp_path / "subs"
-    subs.mkdir()
-    nbformat.write(nb, subs / "burns.ipynb")
-    rows = run_batch(subs, ROOT / "tests" / "autograder" / "problem1.json", tmp_path / "out", jobs=1, budget=budget)
-    return rows[0]
+    return _graded(tmp_path, nb, budget)
 
 
 def test_cells_past_their_cpu_in_all_stop_the_notebook_and_the_checks_still_run(tmp_path):
@@ -452,7 +456,7 @@ def test_cells_past_their_cpu_in_all_stop_the_notebook_and_the_checks_still_run(
     assert not any("did not finish" in n for n in row["notes"]), row["notes"]
 
 
-def test_cells_that_run_out_before_the_todos_leave_them_not_implemented(tmp_path):
+def test_cells_that_run_out_before_the_todos_leave_their_functions_undefined(tmp_path):
     """The same limit met right after the imports: the TODO cells never run, so no check finds
     its function, and the notes name the cell where the notebook stopped."""
     budget = Budget(cell=4, run=6, call=3, check=30, idle=4, run_idle=12, check_idle=4)
@@ -471,11 +475,7 @@ def test_cells_past_their_waiting_in_all_stop_the_notebook_and_the_checks_still_
     nb = master
     for k in range(4):  # 14 s of waiting after a whole master, 3.5 s per cell
         nb = insert_after(nb, len(master.cells) - 1 + k, f"import time\ntime.sleep(3.5)  # pause {k + 1}")
-    subs = tmp_path / "subs"
-    subs.mkdir()
-    nbformat.write(nb, subs / "pauses.ipynb")
-    budget = Budget(cell=8, run=40, call=3, check=30, idle=4, run_idle=9, check_idle=4)
-    row = run_batch(subs, ROOT / "tests" / "autograder" / "problem1.json", tmp_path / "out", jobs=1, budget=budget)[0]
+    row = _graded(tmp_path, nb, Budget(cell=8, run=40, call=3, check=30, idle=4, run_idle=9, check_idle=4))
     assert row["status"] == "graded" and row["scores"] == FULL, row
     notes = " ".join(row["notes"])
     assert "timed out (idle of all cells together)" in notes and "used up their idle time together" in notes, notes
@@ -488,13 +488,9 @@ def test_a_notebook_that_ignores_the_interruption_is_stopped_and_not_graded(tmp_
     nb = load(MASTER)
     stubborn = "while True:\n    try:\n        while True:\n            pass\n    except BaseException:\n        pass"
     nb = insert_after(nb, _imports(nb), stubborn)
-    subs = tmp_path / "subs"
-    subs.mkdir()
-    nbformat.write(nb, subs / "stubborn.ipynb")
-    budget = Budget(cell=4, run=2, call=3, check=30, idle=4, run_idle=12, check_idle=4)
-    rows = run_batch(subs, ROOT / "tests" / "autograder" / "problem1.json", tmp_path / "out", jobs=1, budget=budget)
-    assert rows[0]["status"] == "graded" and set(rows[0]["scores"].values()) == {0.0}, rows[0]
-    assert rows[0]["notes"] == ["the notebook's cells did not finish: it used more than 2 s of CPU time"]
+    row = _graded(tmp_path, nb, Budget(cell=4, run=2, call=3, check=30, idle=4, run_idle=12, check_idle=4))
+    assert row["status"] == "graded" and set(row["scores"].values()) == {0.0}, row
+    assert row["notes"] == ["the notebook's cells did not finish: it used more than 2 s of CPU time"]
 
 
 def test_refuses_without_bubblewrap(tmp_path):
