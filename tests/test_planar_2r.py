@@ -1,6 +1,8 @@
 """2R planar arm: the MJCF model against closed forms, and the kinematics against finite
 differences and round trips."""
 
+import warnings
+
 import mujoco
 import numpy as np
 import pytest
@@ -118,6 +120,15 @@ def test_the_two_branches_are_mirror_images():
 def test_unreachable_target_raises_clear_error(x):
     with pytest.raises(ValueError, match="outside the workspace"):
         k2.inverse_kinematics(x)
+
+
+def test_a_target_too_far_to_square_is_named_without_overflow_warnings():
+    """|x| = 1e308 overflowed x**2 and printed NumPy's warning before the error."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match=r"distance 1e\+308 m .* outside the workspace"):
+            k2.inverse_kinematics([1e308, 0.0])
+        assert k2.is_reachable([[1e308, 1e308], [0.5, 0.2]]).tolist() == [False, True]
 
 
 def test_clip_moves_an_unreachable_target_to_the_boundary_and_warns():

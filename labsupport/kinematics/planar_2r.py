@@ -192,7 +192,9 @@ def elbow_cosine(x, arm: Planar2R = LAB_ARM) -> np.ndarray:
     .. math:: D = \cos q_2 = \frac{x^2 + y^2 - l_1^2 - l_2^2}{2 l_1 l_2}
     """
     x, arm = _q(x, "x"), checked_arm(arm)
-    return (np.sum(x**2, axis=-1) - arm.l1**2 - arm.l2**2) / (2 * arm.l1 * arm.l2)
+    with np.errstate(over="ignore"):  # |x| past 1e154: D is inf, i.e. unreachable
+        r_sq = np.sum(x**2, axis=-1)
+    return (r_sq - arm.l1**2 - arm.l2**2) / (2 * arm.l1 * arm.l2)
 
 
 def is_reachable(x, arm: Planar2R = LAB_ARM) -> np.ndarray:
@@ -240,7 +242,7 @@ def inverse_kinematics(
     D = elbow_cosine(x, arm)
     outside = np.abs(D) > 1 + BOUNDARY_TOL
     if np.any(outside):
-        r = np.linalg.norm(x, axis=-1)
+        r = np.hypot(x[..., 0], x[..., 1])  # no overflow, even for 1e308
         bad = float(np.atleast_1d(r)[np.atleast_1d(outside)][0])
         message = (
             f"target at distance {bad:.4g} m from the base is outside the workspace "
