@@ -842,6 +842,20 @@ def test_calling_labsupports_controllers_scores_zero():
             assert "labsupport.controllers.joint_space.ct_joint_torque" in result.message
 
 
+@pytest.mark.parametrize("notebook", ["problem1_reaching.ipynb", "problem2_tracking.ipynb"])
+def test_each_problems_box_names_what_the_rules_allow_and_forbid(notebook):
+    """The box listed two of the five forbidden modules: a student who reached for the checks'
+    own helpers (wrap_angle, tip) scored zero without having been told."""
+    box = nbformat.read(ROOT / "notebooks" / notebook, as_version=4).cells[0].source
+    allowed, forbidden = box.split("Not allowed inside a TODO:")
+    assert "What you may use from labsupport" in allowed
+    for module in rules.FORBIDDEN:
+        assert f"`{module}`" in forbidden, module
+    for name in rules.ALLOWED:
+        last = name.rsplit(".", 1)[-1]
+        assert f"`{name}" in allowed or re.search(rf"`{last}[`(]", allowed), name
+
+
 def test_an_error_in_the_students_code_names_its_line_and_a_six_row_jacobian_is_explained():
     """A law that raised said only NumPy's words ("operands could not be broadcast together with
     shapes (3,) (6,)"): no line, and no word that site_jacobian has six rows."""
