@@ -144,7 +144,7 @@ def single_joint_panel(
         runs: label -> ``sim.Log`` of a one-joint arm; runs after the first are dashed, dash-dotted...
         reference: ``reference(t) -> Reference`` (radians); drawn as "desired" (a wide grey band)
             on an angle panel; an error panel shows desired minus actual, :math:`\theta_d - \theta`.
-        level: ``(label, value)``, a dotted horizontal line, in the panel's unit before the
+        level: ``(label, value)``, a dotted horizontal line named under its left end, in the panel's unit before the
             conversion to degrees (radians for an angle, rad/s for a speed).
         limit: the actuator limit, drawn as red dotted lines at :math:`\pm` ``limit`` on a torque panel.
     """
@@ -164,7 +164,21 @@ def single_joint_panel(
             text, value = level
         except (TypeError, ValueError):
             raise ValueError(f"level must be a pair (label, value), got {validate.short(level)}") from None
-        ax.axhline(np.degrees(value) if quantity in ("angle", "rate") else value, color="gray", ls=":", label=text)
+        value = np.degrees(value) if quantity in ("angle", "rate") else value
+        ax.axhline(value, color="gray", ls=":")
+        # named under the line's left end, where the runs start (as a legend entry it crowded
+        # the free response's legend onto a curve)
+        ax.annotate(
+            text,
+            (0, value),
+            xycoords=("axes fraction", "data"),
+            xytext=(3, -2),
+            textcoords="offset points",
+            ha="left",
+            va="top",
+            fontsize=8,
+            color="0.3",
+        )
     if limit is not None and quantity == "torque":
         for sign in (-1, 1):
             ax.axhline(sign * limit, color="tab:red", ls=":")

@@ -56,7 +56,8 @@ def feedforward_torque(model: SingleJoint, theta_d, theta_dot_d, theta_ddot_d):
 def computed_torque(
     model: SingleJoint, theta, theta_dot, theta_d, theta_dot_d, theta_ddot_d, Kp, Kd
 ):
-    r"""Feedforward plus feedback [MR 11.35]:
+    r"""Feedforward plus feedback, the law the lab calls computed torque (it cites
+    [MR 11.35], whose feedback also passes through the model :math:`\tilde M`):
 
     .. math::
         \tau = \underbrace{\tilde M\ddot\theta_d
