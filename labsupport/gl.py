@@ -13,6 +13,7 @@ import json
 import os
 import platform
 import sys
+import warnings
 from pathlib import Path
 
 #: The folders where glvnd's libEGL reads its vendor files: JSON files that each name one
@@ -167,11 +168,26 @@ def osmesa_works() -> bool:
 
 #: Why the last :func:`select_backend` chose what it chose (shown by rendering errors).
 last_choice: str = "select_backend() has not run"
+#: The ``MUJOCO_GL`` the user had set before labsupport was imported, if any.
+user_backend: str | None = None
+#: What to do where the backend the user set does not render.
+USER_BACKEND_ADVICE = (
+    "MUJOCO_GL was set before labsupport was imported: unset it where it was set and restart the "
+    "kernel, and labsupport picks a backend that works here"
+)
+
+
+def mujoco_gl_values() -> tuple[str, ...]:
+    """The ``MUJOCO_GL`` values MuJoCo accepts on this system (its import refuses any other)."""
+    values = ("disable", "disabled", "off", "false", "0", "enable", "enabled", "on", "true", "1", "glfw")
+    extra = {"Linux": ("glx", "egl", "osmesa"), "Windows": ("wgl",), "Darwin": ("cgl",)}
+    return values + extra.get(platform.system(), ())
 
 
 def select_backend() -> str | None:
     """Set ``MUJOCO_GL`` (and ``PYOPENGL_PLATFORM``) unless the user already chose (an empty
-    ``MUJOCO_GL`` counts as no choice).
+    ``MUJOCO_GL`` counts as no choice; one MuJoCo would refuse is dropped with a warning, since
+    MuJoCo's import would fail on it).
 
     On Linux, EGL is taken if it really opens a display (:func:`egl_works`), else OSMesa if it
     really creates a context (:func:`osmesa_works`), else GLFW if a desktop display is open,
@@ -182,15 +198,28 @@ def select_backend() -> str | None:
     (:func:`list_nvidia_egl`), also when the user set ``MUJOCO_GL=egl`` beforehand.
     Returns the backend in force, or None.
     """
-    global last_choice
+    global last_choice, user_backend
+    chosen = os.environ.get("MUJOCO_GL", "")
+    if chosen.strip() and chosen.strip().lower() not in mujoco_gl_values():
+        # MuJoCo's import would refuse it, and with it every simulation of the course
+        warnings.warn(
+            f"MUJOCO_GL={chosen!r} is not a value MuJoCo knows (on {platform.system()}: "
+            f"{', '.join(mujoco_gl_values())}); labsupport ignores it and picks a backend itself. "
+            "Fix or unset MUJOCO_GL to silence this.",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+        del os.environ["MUJOCO_GL"]
+    user_backend = None
     notes = " (NVIDIA's EGL listed by labsupport)" if on_linux() and list_nvidia_egl() else ""
     if on_linux() and nvidia_egl_missing():
         notes += f"; {NVIDIA_EGL_ADVICE}"
     elif on_linux() and egl_loader_missing():
         notes += f"; {EGL_LOADER_ADVICE}"
     if os.environ.get("MUJOCO_GL", "").strip():  # empty is no choice: MuJoCo would take GLFW's default
-        last_choice = f"MUJOCO_GL={os.environ['MUJOCO_GL']} was set before labsupport was imported{notes}"
-        return os.environ["MUJOCO_GL"]
+        user_backend = os.environ["MUJOCO_GL"]
+        last_choice = f"MUJOCO_GL={user_backend} was set before labsupport was imported{notes}"
+        return user_backend
     if "mujoco" in sys.modules:
         last_choice = "mujoco was imported before labsupport, so MUJOCO_GL could not be chosen"
         return None

@@ -108,9 +108,10 @@ def make_renderer(model: mujoco.MjModel, width: int = 320, height: int = 240) ->
     except Exception as err:  # EGL/OSMesa/CGL/GLFW/PyOpenGL raise many types; all mean "no context"
         used = f"MUJOCO_GL={backend}" if backend else "its default backend"
         gpu = f" Also, {gl.NVIDIA_EGL_ADVICE}." if gpu_unused else ""
+        chosen = f" {gl.USER_BACKEND_ADVICE}." if gl.user_backend else ""
         raise RenderingUnavailable(
             f"MuJoCo could not open an offscreen OpenGL context with {used} "
-            f"({type(err).__name__}: {err}).{gpu} {INSTALL_HINT}"
+            f"({type(err).__name__}: {err}).{gpu}{chosen} {INSTALL_HINT}"
         ) from err
     if gpu_unused:  # it renders, but on the CPU
         warnings.warn(f"MuJoCo renders in software here, slowly: {gl.NVIDIA_EGL_ADVICE}", RuntimeWarning, stacklevel=2)

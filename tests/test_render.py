@@ -136,6 +136,7 @@ def fresh_backend_choice(monkeypatch):
     unset_env(monkeypatch, "MUJOCO_GL", "PYOPENGL_PLATFORM")
     monkeypatch.delitem(sys.modules, "mujoco", raising=False)
     monkeypatch.setattr(gl, "last_choice", gl.last_choice)
+    monkeypatch.setattr(gl, "user_backend", gl.user_backend)
     return monkeypatch
 
 
@@ -147,6 +148,19 @@ def test_select_backend_reports_when_nothing_works(fresh_backend_choice):
     assert gl.select_backend() is None
     assert "no OpenGL backend works" in gl.last_choice and "no display is open for glfw" in gl.last_choice
     assert "MUJOCO_GL" not in os.environ
+
+
+def test_a_mujoco_gl_that_mujoco_would_refuse_is_dropped_with_a_warning(fresh_backend_choice):
+    """``MUJOCO_GL=bogus`` made ``import labsupport`` fail inside MuJoCo's import ("invalid value
+    for environment variable MUJOCO_GL"), simulation and all."""
+    fresh_backend_choice.setenv("MUJOCO_GL", "bogus")
+    fresh_backend_choice.setattr(gl, "on_linux", lambda: True)
+    fresh_backend_choice.setattr(gl, "egl_works", lambda: True)
+    with pytest.warns(RuntimeWarning, match="MUJOCO_GL='bogus' is not a value MuJoCo knows"):
+        assert gl.select_backend() == "egl"
+    assert os.environ["MUJOCO_GL"] == "egl" and gl.user_backend is None
+    fresh_backend_choice.setenv("MUJOCO_GL", " OSMesa ")  # MuJoCo reads it stripped, in lower case
+    assert gl.select_backend() == " OSMesa " and gl.user_backend == " OSMesa "
 
 
 def test_an_empty_mujoco_gl_is_no_choice(fresh_backend_choice):
@@ -326,6 +340,19 @@ def test_a_user_choice_of_egl_still_gets_nvidias_egl_listed(glvnd, fresh_backend
     assert gl.select_backend() == "egl"
     assert "NVIDIA's EGL listed by labsupport" in gl.last_choice
     assert os.environ["__EGL_VENDOR_LIBRARY_FILENAMES"].startswith(gl.NVIDIA_EGL_VENDOR_FILE)
+
+
+@pytest.mark.skipif(not gl.egl_works(), reason="EGL cannot open a display on this machine")
+def test_a_bad_mujoco_gl_still_simulates_and_renders_and_a_users_failing_one_is_named(tmp_path):
+    """A mistyped backend no longer stops the import; a valid one that cannot render here (MuJoCo's
+    ``disable``) says to unset it, where the advice used to be only what to install."""
+    result, frames = _render_in_subprocess(tmp_path, MUJOCO_GL="bogus")
+    assert result["backend"] == "egl", result
+    _assert_real_frames(frames)
+    (tmp_path / "frames.npy").unlink()
+    result, frames = _render_in_subprocess(tmp_path, MUJOCO_GL="disable")
+    assert frames is None and result["show_returned_none"], result
+    assert gl.USER_BACKEND_ADVICE in result["error"] and "MUJOCO_GL=disable" in result["error"], result
 
 
 @pytest.mark.skipif(not gl.egl_works(), reason="EGL cannot open a display on this machine")
