@@ -609,6 +609,36 @@ def test_sound_approximations_get_full_marks(master2):
                     assert result.status == PASS and result.score == 1, result
 
 
+def scribbles_on_its_arguments(fn):
+    """``fn``, then every array it was given overwritten: the effect on the caller of a right law
+    that works in place on its inputs (``q_d -= data.qpos``, ``x -= shoulder``)."""
+
+    def scribbling(*args, **kwargs):
+        value = fn(*args, **kwargs)
+        for a in (*args, *kwargs.values()):
+            if isinstance(a, np.ndarray) and a.flags.writeable:
+                a[...] = 7.0
+        return value
+
+    return scribbling
+
+
+def test_right_laws_that_change_their_arguments_in_place_get_full_marks(master1, master2):
+    """A right pd_torque that did ``q_d -= data.qpos`` was marked wrong ("got" the right torque,
+    "expected" one from the moved q_d), and a right IK that shifted its x moved the check's own
+    target: the checks handed the student their own arrays. The batch grader sends copies."""
+    problems = ((master1, ("p1_ik", "p1_pd", "p1_ct", "p1_reach")), (master2, ("p2_osct", "p2_ikct", "p2_track")))
+    for master, names in problems:
+        functions = {
+            name: scribbles_on_its_arguments(master[name])
+            for name in ("ik_3r", "pd_torque", "ct_joint_torque", "ct_op_torque", "ct_ik_joint_torque")
+            if name in master
+        }
+        for name in names:
+            result = grade(name, **functions, q0_traj=master.get("q0_traj"))
+            assert result.status == PASS and result.score == 1, result
+
+
 @pytest.mark.filterwarnings("ignore::PendingDeprecationWarning")  # NumPy's word on np.matrix, which students meet
 def test_right_numbers_as_a_row_or_a_column_get_full_marks(master1):
     """np.matrix products and x[:, None] keep two dimensions; the numbers are right, and

@@ -14,6 +14,7 @@ student's function sees exactly what it would see inside a simulation.
 
 from __future__ import annotations
 
+import copy
 import os
 import re
 import sysconfig
@@ -221,9 +222,12 @@ class DirectProbe(Probe):
         return self._model, data
 
     def _expand(self, args):
+        """The arguments as the student's function gets them: a State as fresh (model, data), and
+        every array or list a copy, so that a function that changes its arguments in place does
+        not change the check's own targets (as in the batch grader, which sends copies)."""
         out = []
         for a in args:
-            out.extend(self._model_data(a) if isinstance(a, State) else (a,))
+            out.extend(self._model_data(a) if isinstance(a, State) else (copy.deepcopy(a),))
         return out
 
     def _lookup(self, name: str):
@@ -236,7 +240,7 @@ class DirectProbe(Probe):
         if not callable(fn):
             raise StudentError(f"{fname} should be a function, but it is a {type(fn).__name__}")
 
-        expanded = self._expand(args)
+        expanded, kwargs = self._expand(args), copy.deepcopy(kwargs)
 
         def call_and_read():  # read as numbers under the watch too: an __array__ runs code
             value = fn(*expanded, **kwargs)
