@@ -20,10 +20,17 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from labsupport import validate
-from labsupport.sim import Log
+from labsupport.sim import RUNAWAY_SPEED, Log, SimulationDiverged
 
 #: The lab's (textbook) parameters.
 LAB_M, LAB_m, LAB_r, LAB_b, LAB_g = 0.5, 1.0, 0.1, 0.1, 9.81
+
+
+#: How many times RK45 may evaluate the dynamics in one run (about 2 s). The lab's runs need
+#: about a hundred per simulated second; one that needs more than this has gains far beyond the
+#: arm's scale (Kd = 1e5 N·m·s/rad on M = 0.5 kg·m² takes 400,000 for 1 s: a mode decaying in
+#: 5 µs), and with higher ones it would run for minutes.
+MAX_EVALUATIONS = 300_000
 
 
 class _BadTorque(Exception):
@@ -85,6 +92,13 @@ class SingleJoint:
             duration: simulated time [s] from t = 0.
             state0: initial ``(theta, theta_dot)``.
             dt: spacing of the returned samples [s] (the solver picks its own steps).
+            rtol, atol: RK45's relative and absolute tolerances (positive).
+
+        Raises:
+            labsupport.sim.SimulationDiverged: the joint turns faster than
+                :data:`labsupport.sim.RUNAWAY_SPEED` (a sign error, gains far too high).
+            RuntimeError: RK45 needed more than :data:`MAX_EVALUATIONS` steps' worth of
+                evaluations: the closed loop is too stiff for it.
 
         Returns:
             The :class:`labsupport.sim.Log` of the run, sampled at ``0, dt, 2dt, … < duration``:
@@ -105,6 +119,7 @@ class SingleJoint:
         if dt > duration:
             raise ValueError(f"dt must be at most the duration ({duration} s), got {dt!r}")
         validate.steps(duration, dt)  # not a log past the memory
+        rtol, atol = validate.number("rtol", rtol, positive=True), validate.number("atol", atol, positive=True)
 
         validate.function("torque", torque, "a function torque(t, state) -> float, state = (theta, theta_dot)")
 
@@ -118,6 +133,8 @@ class SingleJoint:
                 ) from err
             if tau is None:
                 raise _BadTorque(f"the torque function returned None at t = {t:.4f} s")
+            if isinstance(tau, (str, bytes)):  # NumPy would read "1" as 1 N·m
+                raise _BadTorque(f"the torque function returned the text {tau!r} at t = {t:.4f} s, not a number")
             validate.real(f"the torque function (at t = {t:.4f} s) returned", tau)
             tau_arr = np.asarray(tau, dtype=float)
             if tau_arr.size != 1:
@@ -127,14 +144,35 @@ class SingleJoint:
                 raise _BadTorque(f"tau is {tau} (not finite) at t = {t:.4f} s, state = {x}")
             return tau
 
+        evaluations = 0
+
         def rhs(t, x):
+            nonlocal evaluations
+            evaluations += 1
+            if evaluations > MAX_EVALUATIONS:
+                raise RuntimeError(
+                    f"RK45 had evaluated the dynamics {MAX_EVALUATIONS:,} times and reached only t = {t:.4g} s "
+                    f"of {duration:g} s: the closed loop is too stiff for it, with gains far beyond this arm's "
+                    f"scale (M = {self.M:g} kg·m²). Lower the gains, or check the law for a sign error."
+                )
             return (x[1], self.acceleration(x[0], x[1], checked_torque(t, x)))
 
+        def runaway(t, x):  # crosses zero where the joint turns at RUNAWAY_SPEED
+            return RUNAWAY_SPEED - abs(x[1])
+
+        runaway.terminal = True
         t_eval = np.arange(0.0, duration, dt)
         try:
-            sol = solve_ivp(rhs, (0.0, duration), state0, t_eval=t_eval, method="RK45", rtol=rtol, atol=atol)
+            sol = solve_ivp(
+                rhs, (0.0, duration), state0, t_eval=t_eval, method="RK45", rtol=rtol, atol=atol, events=runaway
+            )
         except _BadTorque as err:
             raise ValueError(str(err)) from None
+        if sol.status == 1:  # stopped by the runaway event
+            (t_bad,), (x_bad,) = sol.t_events[0], sol.y_events[0]
+            reason = f"the joint reached {RUNAWAY_SPEED:g} rad/s: the run is running away"
+            advice = "Lower the gains, clip the torque, or check the law for a sign error."
+            raise SimulationDiverged(float(t_bad), x_bad[:1], x_bad[1:], reason, advice)
         if not sol.success:
             raise RuntimeError(f"the integration stopped early: {sol.message}")
         tau = np.array([[checked_torque(t, x)] for t, x in zip(sol.t, sol.y.T, strict=True)]).reshape(-1, 1)

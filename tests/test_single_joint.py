@@ -5,9 +5,10 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from labsupport import gains, metrics, sim
+from labsupport import gains, metrics, plants, sim
 from labsupport.controllers.single_joint import computed_torque, feedforward_torque, pd_torque, pi_speed_torque
 from labsupport.plants import SingleJoint, load_model
+from labsupport.sim import RUNAWAY_SPEED, SimulationDiverged
 from labsupport.trajectories import Reference, sinusoid, versine
 
 HORIZONTAL = SingleJoint(g=0.0)
@@ -177,11 +178,39 @@ def test_rms_of_nothing_is_refused_with_a_reason():
         (np.zeros(2), r"tau must be a scalar, got shape \(2,\)"),
         (float("nan"), "tau is nan \\(not finite\\)"),
         (1j, r"the torque function \(at t = 0\.0000 s\) returned complex numbers, but angles and torques are real"),
+        ("1", r"the torque function returned the text '1' at t = 0\.0000 s, not a number"),  # NumPy: 1 N·m
     ],
 )
 def test_the_analytic_joint_names_a_bad_torque(tau, message):
     with pytest.raises(ValueError, match=message):
         SingleJoint().simulate(lambda t, state: tau, 1.0)
+
+
+def test_a_sign_error_stops_where_the_closed_form_reaches_the_runaway_speed():
+    """``tau = +1000 theta`` (a sign error) used to return theta = 2.9e192 rad without a word.
+    With g = 0 the closed loop is M theta'' + b theta' - 1000 theta = 0: from theta = 0.1 at rest,
+    theta' = A s1 (e^(s1 t) - e^(s2 t)), which reaches RUNAWAY_SPEED at the time computed here."""
+    arm = SingleJoint()
+    s1, s2 = np.roots([arm.M, arm.b, -1000.0]).max(), np.roots([arm.M, arm.b, -1000.0]).min()
+    A = 0.1 * -s2 / (s1 - s2)
+    t_star = brentq(lambda t: A * s1 * (np.exp(s1 * t) - np.exp(s2 * t)) - RUNAWAY_SPEED, 0.0, 1.0)
+    with pytest.raises(SimulationDiverged, match="check the law for a sign error") as caught:
+        arm.simulate(lambda t, x: 1000.0 * x[0], 10.0, state0=(0.1, 0.0))
+    assert caught.value.t == pytest.approx(t_star, rel=1e-4)
+    assert caught.value.qvel[0] == pytest.approx(RUNAWAY_SPEED)
+
+
+def test_gains_too_stiff_for_rk45_are_named_instead_of_running_for_minutes(monkeypatch):
+    """Kd = 1e7 took 246 s to return; the solver's work is now bounded (smaller here, for speed)."""
+    monkeypatch.setattr(plants, "MAX_EVALUATIONS", 20_000)
+    stiff = lambda t, x: -1e5 * x[1] - 100.0 * x[0]  # noqa: E731
+    with pytest.raises(RuntimeError, match="too stiff for it"):
+        SingleJoint().simulate(stiff, 1.0, state0=(0.1, 0.0))
+    log = SingleJoint().simulate(lambda t, x: 5.72 * (np.pi / 2 - x[0]) - 1.9 * x[1], 10.0)  # the lab's gains
+    assert log.q[-1, 0] == pytest.approx(np.pi / 2, abs=1e-3)
+    for tolerances in ({"atol": np.nan}, {"rtol": np.inf}, {"rtol": 0.0}):  # NaN and inf never returned
+        with pytest.raises(ValueError, match="rtol|atol"):
+            SingleJoint().simulate(lambda t, x: 0.1, 1.0, **tolerances)
 
 
 def test_step_metrics_refuse_what_is_not_one_response():
