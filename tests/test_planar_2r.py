@@ -168,6 +168,23 @@ def test_joint_reference_reproduces_the_cartesian_one():
     np.testing.assert_allclose(np.gradient(jref.pos, dt, axis=0)[1:-1], jref.vel[1:-1], atol=1e-3)
 
 
+def test_a_path_that_touches_the_workspace_edge_is_refused_as_singular():
+    """A circle centred 0.6 m out with radius 0.3 m touches the outer edge at t = 0, where 0.6 + 0.3
+    rounds below 0.9: q2 came out 3e-8 rad, det J = 6.7e-9 passed the old bound of 1e-9, and the
+    joint acceleration returned was 1e9 rad/s². A bound that is not a positive number used to
+    switch the check off (0, negative, NaN) or fail inside NumPy (None, text)."""
+    from labsupport.trajectories import circle_2d
+
+    edge = circle_2d(0.0, (0.6, 0.0), 0.3, 1.0)
+    assert k2.is_reachable(edge.pos) and k2.inverse_kinematics(edge.pos)[1] < 1e-7
+    with pytest.raises(ValueError, match="singular configuration"):
+        k2.joint_reference(edge)
+    inside = circle_2d(0.0, (0.5, 0.2), 0.15, 6.0)
+    for bad in (0.0, -1.0, np.nan, None, "x"):
+        with pytest.raises(ValueError, match="min_det must be"):
+            k2.joint_reference(inside, min_det=bad)
+
+
 def test_annulus_sample_is_seeded_and_reachable():
     a = k2.sample_annulus(np.random.default_rng(42))
     b = k2.sample_annulus(np.random.default_rng(42))

@@ -288,7 +288,7 @@ def joint_reference(
     ref: Reference,
     arm: Planar2R = LAB_ARM,
     branch: str = "up",
-    min_det: float = 1e-9,
+    min_det: float = 1e-6,
 ) -> Reference:
     r"""Turn a Cartesian reference :math:`(x_d, \dot x_d, \ddot x_d)` into a joint
     reference:
@@ -299,8 +299,11 @@ def joint_reference(
 
     Works on one instant ``(2,)`` or a whole trajectory ``(N, 2)``. Raises
     ``ValueError`` if the path reaches a singular configuration
-    (:math:`|\det J| <` ``min_det``: arm stretched or folded).
+    (:math:`|\det J| <` ``min_det`` > 0, in m²: arm stretched or folded; on the lab's
+    arm the default is :math:`|q_2|` within 5e-6 rad of 0 or π, where a point on the
+    workspace's edge lands after rounding).
     """
+    min_det = validate.number("min_det", min_det, positive=True)
     x, xdot, xddot = _path(ref)
     q = inverse_kinematics(x, arm, branch)
     J = jacobian(q, arm)
