@@ -128,9 +128,22 @@ def mass_times(model: mujoco.MjModel, data: mujoco.MjData, v: np.ndarray, out: n
         mujoco.mj_mulM(model, data, out, v)
     except (TypeError, AttributeError):
         validate.model_and_data(model, data)
-        validate.vector("v", v, (model.nv,))
+        try:
+            validate.vector("v", v, (model.nv,))
+        except ValueError as err:
+            raise ValueError(f"{err}{_gain_matrix_hint(v)}") from None
         raise _bad_out("mass_times", out, (model.nv,)) from None
     return out
+
+
+def _gain_matrix_hint(value) -> str:
+    """Why a control law's acceleration may have come out as a matrix: its gains were."""
+    if np.ndim(value) != 2:
+        return ""
+    return (
+        "; in a control law this is the acceleration, which a gain given as a matrix makes a "
+        "matrix too: pass Kp and Kd as numbers (or one number per joint or coordinate)"
+    )
 
 
 def _bad_out(function: str, out, shape: tuple[int, ...]) -> ValueError:
@@ -280,7 +293,7 @@ def jacobian_solve(
     if rhs.shape != (d,) or d > nv:
         raise ValueError(
             f"jacobian_solve needs a (d, nv) Jacobian with d <= nv and a (d,) right-hand side, "
-            f"got J of shape {J.shape} and rhs of shape {rhs.shape}"
+            f"got J of shape {J.shape} and rhs of shape {rhs.shape}{_gain_matrix_hint(rhs)}"
         )
     JJt = J.dot(J.T)
     try:

@@ -114,3 +114,24 @@ def test_the_checks_keep_what_they_should_accept():
     assert validate.whole("width", 320.0, 1) == 320 and validate.whole("qp", np.int64(0), 0, 51) == 0
     assert float(metrics.second_order_error(0.0, 0.1, 0.0, 5.0, 0.7)) == pytest.approx(0.1)
     np.testing.assert_allclose(metrics.second_order_error([0.0], [0.1, 0.2], 0.0, 5.0, 0.7), [[0.1, 0.2]])
+
+
+def test_gains_given_as_matrices_are_named_by_the_laws_that_meet_them():
+    """``ct_joint_torque(..., Kp=100 * np.eye(2), ...)`` said only "v must have shape (2,), got
+    shape (2, 2)", naming mass_times's argument; os_ct_torque, jacobian_solve's right-hand side."""
+    import mujoco
+
+    from labsupport.controllers.joint_space import ct_joint_torque
+    from labsupport.controllers.operational_space import os_ct_torque
+
+    model, data = load_model("planar_2r")
+    mujoco.mj_forward(model, data)
+    zero, matrix = np.zeros(2), 100.0 * np.eye(2)
+    hint = "a gain given as a matrix makes a matrix too: pass Kp and Kd as numbers"
+    with pytest.raises(ValueError, match=hint):
+        ct_joint_torque(model, data, zero, zero, zero, matrix, 20.0)
+    with pytest.raises(ValueError, match=hint):
+        os_ct_torque(model, data, "end_effector", np.array([0.5, 0.2]), zero, zero, matrix, 20.0)
+    with pytest.raises(ValueError, match=r"v must have shape \(2,\), got shape \(3,\)") as caught:
+        dynamics.mass_times(model, data, np.zeros(3))  # a vector of the wrong size: no word on gains
+    assert "gain" not in str(caught.value)
