@@ -308,8 +308,9 @@ def jacobian_solve(
         _refuse_zero_jacobian(J)
         raise ValueError(
             "the Jacobian is singular at this configuration (the arm is stretched out or "
-            "folded): no joint acceleration gives the task acceleration asked for; keep the "
-            "target inside the workspace, away from its boundary"
+            "folded, or two of its joint axes line up, as a six-axis wrist's do at q5 = 0): no "
+            "joint acceleration gives the task acceleration asked for; keep the target inside "
+            "the workspace, away from its boundary, and the wrist away from such poses"
         )
     z = np.empty(d)
     mujoco.mju_cholSolve(z, JJt, rhs)  # z = (J J^T)^-1 y

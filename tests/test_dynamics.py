@@ -447,3 +447,17 @@ def test_the_3r_arm_has_the_problems_masses_and_its_scene_adds_none():
     assert np.allclose(data.qfrc_bias, [0.0, -m3 * g * l3 / 2, -m3 * g * l3 / 2], atol=1e-9)
     assert dynamics.mass_matrix(model, data)[0, 0] == pytest.approx(0.002 + m3 * l3**2 / 3, rel=1e-5)
     assert model.body("target").mocapid[0] == 0 and model.body_mass[model.body("target").id] == 0
+
+
+def test_a_wrist_singularity_is_not_blamed_on_the_target():
+    """At q5 = 0 the UR5e's wrist axes 4 and 6 line up, with the target well inside the workspace;
+    the message spoke only of an arm stretched out or folded."""
+    from labsupport import ur5e
+
+    model, data = ur5e.load_ur5e()
+    data.qpos[4] = 0.0
+    mujoco.mj_forward(model, data)
+    J = dynamics.site_jacobian(model, data, ur5e.SITE)
+    assert np.linalg.matrix_rank(J) == 5  # an independent look: one direction of motion is lost
+    with pytest.raises(ValueError, match="two of its joint axes line up, as a six-axis wrist's do at q5 = 0"):
+        dynamics.jacobian_solve(J, np.ones(6))
