@@ -364,6 +364,8 @@ def circle_tracking_figure(runs: Mapping[str, object], desired_path):
 #: The most frames one video may have: 2.5 minutes at 12 frames/s, about 0.9 GB of frames at
 #: 480x360 (the frames are held in memory until they are encoded).
 MAX_FRAMES = 1800
+#: The largest video frame :func:`planar_arm_frames` draws (Full HD), in pixels.
+MAX_VIDEO_SIZE = (1920, 1080)
 
 
 def frame_indices(n_samples: int, dt: float, fps: float, speed: float = 1.0, until: float | None = None) -> np.ndarray:
@@ -439,8 +441,10 @@ def planar_arm_frames(
             The trail of the end effector is drawn behind the arm.
         arm: :class:`labsupport.kinematics.planar_2r.Planar2R`.
         t: (N,) times, printed in the corner.
-        frames: sample indices to draw (all by default, see :func:`frame_indices`).
-        size: (width, height) of the video in pixels (even numbers, for H.264).
+        frames: sample indices to draw (all by default, see :func:`frame_indices`), at most
+            :data:`MAX_FRAMES`.
+        size: (width, height) of the video in pixels (even numbers, for H.264), at most
+            :data:`MAX_VIDEO_SIZE`.
         limits: ((xmin, xmax), (ymin, ymax)); the whole workspace by default.
 
     Returns:
@@ -452,6 +456,8 @@ def planar_arm_frames(
     if not (width == int(width) and height == int(height) and width > 0 and height > 0) or width % 2 or height % 2:
         raise ValueError(f"size must be two positive even whole numbers of pixels (H.264), got {size}")
     width, height = int(width), int(height)
+    if width > MAX_VIDEO_SIZE[0] or height > MAX_VIDEO_SIZE[1]:
+        raise ValueError(f"size must be at most {MAX_VIDEO_SIZE[0]} x {MAX_VIDEO_SIZE[1]} pixels, got {size}")
     dpi = 80
     fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
     canvas = FigureCanvasAgg(fig)
@@ -471,6 +477,11 @@ def planar_arm_frames(
         raise ValueError(f"frames must be whole sample indices (see frame_indices), got {validate.short(frames)}")
     if frames.size and not (frames.min() >= 0 and frames.max() < n):
         raise ValueError(f"frames must be sample indices in [0, {n - 1}], got {frames.min()} to {frames.max()}")
+    if frames.size > MAX_FRAMES:  # each frame is a full picture in memory
+        raise ValueError(
+            f"{frames.size} frames is more than {MAX_FRAMES}: pick the samples to draw with "
+            "frames=frame_indices(n_samples, dt, fps, speed, until)"
+        )
     reach = arm.l1 + arm.l2 + 0.05
     (x0, x1), (y0, y1) = limits if limits is not None else ((-reach, reach), (-reach, reach))
 

@@ -340,3 +340,19 @@ def test_a_figure_flag_that_is_not_true_or_false_is_named():
     with pytest.raises(ValueError, match="legend must be True or False"):
         plots.single_joint_panel(ax, {"a": log}, "angle", legend="no")
     plt.close(fig)
+
+
+def test_planar_arm_frames_refuses_a_video_that_would_fill_the_memory():
+    """By default every sample became a frame: a 10 s run logged every millisecond would have
+    drawn 10,000 frames, about 3.5 GB; a size of 20000 x 20000 took 1.2 GB per frame."""
+    from labsupport.kinematics.planar_2r import LAB_ARM
+
+    q = np.zeros((plots.MAX_FRAMES + 1, 2))
+    with pytest.raises(ValueError, match=rf"{plots.MAX_FRAMES + 1} frames is more than {plots.MAX_FRAMES}"):
+        plots.planar_arm_frames([dict(q=q, title="a")], LAB_ARM, size=(64, 48))
+    with pytest.raises(ValueError, match=r"size must be at most 1920 x 1080 pixels"):
+        plots.planar_arm_frames([dict(q=q[:2], title="a")], LAB_ARM, size=(20000, 20000))
+    picked = plots.frame_indices(len(q), 0.002, fps=30)
+    video = plots.planar_arm_frames([dict(q=q, title="a")], LAB_ARM, frames=picked, size=(64, 48))
+    assert video.shape == (len(picked), 48, 64, 3)
+    plt.close("all")
