@@ -241,6 +241,12 @@ def _pd_mistakes(T, state, q_d, Kp, Kd):
             "you added h(q, q̇): that is computed torque's model term; the plain PD uses no model.",
             0.5,
         ),
+        "with_gravity": Mistake(
+            Kp * e - Kd * qdot + terms(arm_model(), state.q, np.zeros(3)).h,
+            "you added gravity compensation g(q): a good law (PD plus gravity), but not the one asked for; "
+            "the plain PD uses no model, and its sag under gravity is what this Problem measures.",
+            0.5,
+        ),
         "degrees": degrees_mistake(np.degrees(Kp * e - Kd * qdot)),
     }
 
