@@ -597,6 +597,25 @@ def test_ik_ct_jdot_sign_is_named(master2):
     assert result.score == 0.25 and "must be subtracted" in result.message, result
 
 
+def test_a_law_that_ignores_the_gains_it_is_given_is_named(master1, master2):
+    """A law that used the notebook's gains (globals) in place of its arguments got a bare "got …,
+    expected …": right formula, wrong inputs, and nothing said which."""
+
+    def with_gains(law, Kp, Kd):  # the law with its last two arguments, the gains, replaced
+        return lambda *args: law(*args[:-2], Kp, Kd)
+
+    cases = (
+        ("p1_pd", "pd_torque", with_gains(master1["pd_torque"], 400.0, 50.0), "Kp = 400, Kd = 50"),
+        ("p1_ct", "ct_joint_torque", with_gains(master1["ct_joint_torque"], 100.0, 18.0), "Kp = 100, Kd = 18"),
+        ("p2_osct", "ct_op_torque", with_gains(master2["ct_op_torque"], 64.0, 16.0), "Kp = 64, Kd = 16"),
+        ("p2_ikct", "ct_ik_joint_torque", with_gains(master2["ct_ik_joint_torque"], 64.0, 16.0), "Kp = 64, Kd = 16"),
+    )
+    for name, fname, law, gains in cases:
+        for seed in (PUBLIC_SEED, OTHER_SEED):
+            result = grade(name, seed, **{fname: law})
+            assert result.score == 0.5 and f"notebook's gains ({gains})" in result.message, result
+
+
 def test_wrong_numbers_are_printed_so_they_differ():
     a, b = np.array([1.00001, 2.0, 3.0]), np.array([1.00002, 2.0, 3.0])
     text = show_pair(a, b)

@@ -313,6 +313,17 @@ def formula_scoring(with_jdot: bool) -> str:
     return text + ". Anything else scores 0."
 
 
+def own_gains_mistake(value: np.ndarray, Kp: float, Kd: float) -> Mistake:
+    """The torque of the right law with the notebook's own gains ``Kp``, ``Kd`` (globals, say)
+    in place of the ones the check passes."""
+    return Mistake(
+        value,
+        f"the formula is right, but with the notebook's gains (Kp = {Kp:g}, Kd = {Kd:g}) in place of the Kp "
+        "and Kd passed to the function: the checks pass others, so use the arguments.",
+        0.5,
+    )
+
+
 def degrees_mistake(value_in_radians: np.ndarray, text: str = "", score: float = 0.25) -> Mistake:
     """The torque of a law computed with angles in degrees (180/π times the angle terms)."""
     return Mistake(

@@ -30,6 +30,7 @@ from labsupport.grading.common import (
     elbow_height,
     formula_scoring,
     judge_torque,
+    own_gains_mistake,
     pan_error,
     pan_turned_round,
     rng_for,
@@ -56,6 +57,7 @@ Q0 = np.array([0.0, np.pi / 6, -np.pi / 4])  # initial configuration [rad]
 DURATION = 5.0  # [s]
 WN_CT, ZETA_CT = 10.0, 0.9  # computed-torque design
 KP_CT, KD_CT = WN_CT**2, 2 * ZETA_CT * WN_CT
+KP_PD, KD_PD = 400.0, 50.0  # the notebook's PD gains, the lab's
 REACH_TOL = 1e-3  # final end-effector error the computed torque must reach [m]
 #: An IK solution must put the tip this close to the target [m] (a tenth of the reach tolerance:
 #: a numerical IK that stops at 1e-5 m passes).
@@ -248,6 +250,7 @@ def _pd_mistakes(T, state, q_d, Kp, Kd):
             0.5,
         ),
         "degrees": degrees_mistake(np.degrees(Kp * e - Kd * qdot)),
+        "own_gains": own_gains_mistake(KP_PD * e - KD_PD * qdot, KP_PD, KD_PD),
     }
 
 
@@ -293,6 +296,7 @@ def _ct_mistakes(T, state, q_d, Kp, Kd):
             M @ (Kp * e) - Kd * qdot + h, "the damping −Kd q̇ must sit inside M(q)(...), with the spring term.", 0.5
         ),
         "degrees": degrees_mistake(M @ np.degrees(v) + h),
+        "own_gains": own_gains_mistake(M @ (KP_CT * e - KD_CT * qdot) + h, KP_CT, KD_CT),
     }
 
 

@@ -40,6 +40,7 @@ from labsupport.grading.common import (
     judge_torque,
     mirror_elbow,
     over_the_top,
+    own_gains_mistake,
     pan_turned_round,
     rng_for,
     run_student,
@@ -202,6 +203,7 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
         "solve_transpose": Mistake(
             M @ np.linalg.solve(J.T, xdd_d + fb - jdq) + h, "solve with J, not Jᵀ: q̈ = J⁻¹(...).", 0.0
         ),
+        "own_gains": own_gains_mistake(law(xdd_d + KD * edot + KP * e - jdq), KP, KD),
     }
 
 
@@ -312,6 +314,7 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
             "the damping has the wrong sign: Kd (q̇_d − q̇).",
             0.5,
         ),
+        "own_gains": own_gains_mistake(M @ (qdd_d + KD * (qd_d - qdot) + KP * (q_d - q)) + h, KP, KD),
         "model_at_reference": Mistake(
             Td.M @ (qdd_d + fb) + Td.h,
             "M and h are taken at the reference (q_d, q̇_d); the law needs them at the arm's state (q, q̇), "
