@@ -834,6 +834,19 @@ def test_a_run_that_leaves_its_branch_is_told_which_way():
         assert problem2._left_the_branch(model, before, 1) is None
 
 
+def test_an_arm_that_falls_off_a_right_reference_is_not_blamed_on_the_ik(master2):
+    """A joint CT that gave no torque let the arm fall onto the elbow-down branch, and the tracking
+    run asked "does the IK switch to it there?" of an IK that never did. The student's ik_3r is
+    now asked at that point; without one, the question stays."""
+    limp = {"ct_op_torque": master2["ct_op_torque"], "ct_ik_joint_torque": lambda model, data, *ref: np.zeros(3)}
+    track = grade("p2_track", PUBLIC_SEED, **limp, ik_3r=master2["ik_3r"])
+    assert track.score == 0.5 and "the elbow was below the shoulder-to-tip line" in track.message, track
+    assert "while your ik_3r gives the elbow-up solution facing the target there" in track.message
+    assert "does the IK switch" not in track.message
+    without_ik = grade("p2_track", PUBLIC_SEED, **limp)
+    assert "does the IK switch to it there? Take q1 = atan2(y, x)" in without_ik.message, without_ik
+
+
 def test_an_ik_a_full_turn_off_is_named_by_the_tracking_run(master2):
     """An IK that wraps q1 into [0, 2π) is right as kinematics, but where the circle's azimuth is
     negative the joint CT swings the pan a full turn: the tracking run says so, not "over the top"."""

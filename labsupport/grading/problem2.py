@@ -86,6 +86,8 @@ IK_APPROX = 1e-5
 #: The tracking check follows one turn of a seeded circle.
 TRACK_DURATION = 1 / FREQUENCY
 
+#: What to do about an IK + joint CT run whose IK left the branch the arm starts on.
+BRANCH_ADVICE = " Take q1 = atan2(y, x) and the elbow-up branch at every point"
 #: Where to look when a value computed from the student's IK is None.
 IK_NOT_PASTED = "check TODO 1 first: ik_3r returns None until your ik_3r from Problem 1 is pasted there"
 OVER_THE_TOP = (
@@ -455,13 +457,15 @@ def tracking_circle(seed: int):
     return center, radius, normal, q0, qdot0
 
 
-def _left_the_branch(model, log, every: int = 10) -> str | None:
+def _left_the_branch(model, log, every: int = 10, ik=None) -> str | None:
     """Where a run of IK + joint CT left the elbow-up solution facing the target (the branch the
     arm starts on), found from the logged poses, or None if it kept to it.
 
     A pan angle more than three quarters of a turn from the reference's azimuth (which never
     crosses ±π) comes first: an IK whose q1 is a full turn (2π) from the arm's makes the joint CT
-    swing the arm round, whatever branch it passes through on the way."""
+    swing the arm round, whatever branch it passes through on the way. ``ik`` (the student's
+    ``ik_3r`` as ``x -> q``, None where it fails) tells an IK that switches branch there from
+    torques that let the arm fall off a reference that kept to its branch."""
     pan_offset = log.q[:, 0] - np.arctan2(log.ref[:, 1], log.ref[:, 0])
     turned = np.flatnonzero(np.abs(pan_offset) > 1.5 * np.pi)
     if turned.size:
@@ -469,19 +473,24 @@ def _left_the_branch(model, log, every: int = 10) -> str | None:
         return (
             f"by t = {log.t[k]:.2f} s the pan had swung round to q1 = {log.q[k, 0]:.2f} rad, "
             f"{pan_offset[k]:+.2f} rad from the target's azimuth atan2(y, x): does the IK return a q1 a full "
-            "turn (2π) from the arm's, outside (−π, π]?"
+            f"turn (2π) from the arm's, outside (−π, π]?{BRANCH_ADVICE}"
         )
-    for q, x, t in zip(log.q[::every], log.ee[::every], log.t[::every], strict=True):
-        if pan_turned_round(q, x):
+    for k in range(0, len(log.t), every):
+        q, t = log.q[k], log.t[k]
+        if pan_turned_round(q, log.ee[k]):
+            where = "the arm faced away from its tip, on the over-the-top solution (pan half a turn from atan2(y, x))"
+        elif elbow_height(model, q) < 0:
+            where = "the elbow was below the shoulder-to-tip line, on the elbow-down branch"
+        else:
+            continue
+        q_ik = ik(log.ref[k]) if ik is not None else None
+        if q_ik is not None and elbow_height(model, q_ik) > 0 and not pan_turned_round(q_ik, log.ref[k]):
             return (
-                f"at t = {t:.2f} s the arm faced away from its tip, on the over-the-top solution (pan half a "
-                "turn from atan2(y, x)): does the IK switch to it there?"
+                f"at t = {t:.2f} s {where}, while your ik_3r gives the elbow-up solution facing the target "
+                "there: the torques let the arm fall off its reference (the IK+JS-CT check says which "
+                "term is off)"
             )
-        if elbow_height(model, q) < 0:
-            return (
-                f"at t = {t:.2f} s the elbow was below the shoulder-to-tip line, on the elbow-down branch: "
-                "does the IK switch to it there?"
-            )
+        return f"at t = {t:.2f} s {where}: does the IK switch to it there?{BRANCH_ADVICE}"
     return None
 
 
@@ -498,6 +507,12 @@ def check_tracking(probe: Probe, seed: int) -> Result:
         r = ref(t)
         return r.pos, r.vel, r.acc, KP, KD
 
+    def student_ik(x):  # the student's elbow-up IK at x, or None where it fails
+        try:
+            return as_vector("ik_3r", probe.call("ik_3r", x, elbow_up=True), 3, "joint vector")
+        except StudentError:
+            return None
+
     score, notes, statuses = 0.0, [], []
     for fname, label in (("ct_op_torque", "OS-CT"), ("ct_ik_joint_torque", "IK+JS-CT")):
         try:
@@ -513,11 +528,10 @@ def check_tracking(probe: Probe, seed: int) -> Result:
             score += 0.5
             notes.append(f"{label}: RMS error {err * 1e3:.3g} mm (needs < {RMS_TOL * 1e3:g} mm)")
         else:
-            left = _left_the_branch(arm_model(), log) if fname == "ct_ik_joint_torque" else None
+            left = _left_the_branch(arm_model(), log, ik=student_ik) if fname == "ct_ik_joint_torque" else None
             notes.append(
                 f"{label}: RMS error {show_beside(err * 1e3, RMS_TOL * 1e3)} mm, should be below {RMS_TOL * 1e3:g} mm"
-                f"{'' if left else TRACKING_HINT}"
-                + (f" ({left} Take q1 = atan2(y, x) and the elbow-up branch at every point)" if left else "")
+                f"{'' if left else TRACKING_HINT}" + (f" ({left})" if left else "")
             )
     with np.printoptions(precision=3, suppress=True):
         where = f"one turn of a circle of radius {radius:.3f} m about {center}, normal {normal}"
