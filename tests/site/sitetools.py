@@ -167,7 +167,8 @@ async () => {
   const raw = [];
   while (walker.nextNode()) {
     const t = walker.currentNode.nodeValue;
-    if (t.includes('$$') || /\\\(|\\\[|\\begin\{|\\frac|\\mathbf/.test(t)) raw.push(t.trim().slice(0, 80));
+    // a TeX command (\tilde, \frac, ...) or delimiter left in the text: math MathJax never saw
+    if (t.includes('$$') || /\\\(|\\\[|\\[a-zA-Z]{2,}|\$\\/.test(t)) raw.push(t.trim().slice(0, 80));
   }
   return {hasMathJax: !!window.MathJax, nMath: mathEls.length,
           nTypeset: document.querySelectorAll('mjx-container').length,
