@@ -379,6 +379,7 @@ OS_MISTAKES = [
     ("jdot_sign", 0.25, "must be subtracted"),
     ("no_bias", 0.25, "bias term"),
     ("bias_sign", 0.25, "h(q, q̇) must be added, not subtracted"),  # was a bare zero
+    ("jdot_at_reference", 0.75, "J̇q̇ is taken at the reference's velocity J⁻¹ẋ_d"),  # was a bare zero
     ("transpose", 0.0, "not Jᵀ"),
     ("no_ff", 0.25, "feed-forward acceleration ẍ_d"),
     ("spring_sign", 0.0, "spring term has the wrong sign"),
@@ -393,6 +394,8 @@ def os_mistake(mistake):
         J = site_jacobian(model, data, SITE)[:3]
         jdq = site_jdot_qdot(model, data, SITE)[:3]
         e, edot = x_d - data.site(SITE).xpos, xd_d - J @ data.qvel
+        if mistake == "jdot_at_reference":  # J̇q̇ on a scratch MjData moving at J⁻¹ẋ_d
+            jdq = jacobian_at(model, data.qpos, np.linalg.solve(J, xd_d))[1]
         a = {
             "no_jdot": xdd_d + Kd * edot + Kp * e,
             "jdot_sign": xdd_d + Kd * edot + Kp * e + jdq,

@@ -165,6 +165,7 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
     M, h, J, jdq = T.M, T.h, T.J, T.jdq
     gravity = terms(model, state.q, np.zeros(3)).h
     e, edot = x_d - T.x, xd_d - J @ state.qdot
+    jdq_reference = terms(model, state.q, np.linalg.solve(J, xd_d)).jdq  # J̇q̇ at the velocity J⁻¹ẋ_d
 
     def law(a):
         return M @ np.linalg.solve(J, a) + h
@@ -178,6 +179,13 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
             0.5,
         ),
         "jdot_sign": Mistake(law(xdd_d + fb + jdq), "J̇q̇ must be subtracted: ẍ = J q̈ + J̇q̇, so J q̈ = ẍ − J̇q̇.", 0.25),
+        "jdot_at_reference": Mistake(
+            law(xdd_d + fb - jdq_reference),
+            "J̇q̇ is taken at the reference's velocity J⁻¹ẋ_d; the law needs it at the arm's own, J̇(q, q̇) q̇ "
+            "from the data the controller is given. The two agree once the arm is on the reference, so it "
+            "still tracks.",
+            0.75,
+        ),
         "no_bias": Mistake(law(xdd_d + fb - jdq) - h, "the bias term h(q, q̇) = data.qfrc_bias is missing.", 0.25),
         "bias_sign": Mistake(law(xdd_d + fb - jdq) - 2 * h, "h(q, q̇) must be added, not subtracted.", 0.25),
         "gravity_only": Mistake(law(xdd_d + fb - jdq) - h + gravity, GRAVITY_ONLY, 0.5),
