@@ -205,6 +205,11 @@ def terms(model: mujoco.MjModel, q, qdot, t: float = 0.0) -> Terms:
     )
 
 
+def gravity(model: mujoco.MjModel, q) -> np.ndarray:
+    """:math:`g(q) = h(q, 0)`: the bias forces at rest, gravity alone."""
+    return terms(model, q, np.zeros(len(q))).h
+
+
 #: What a law that inverts the mass matrix where it should multiply by it is told.
 INVERSE_MASS = (
     "the law multiplies by M(q)⁻¹ where it should multiply by M(q): np.linalg.solve(M, v) is M⁻¹v, M @ v is M v."

@@ -29,6 +29,7 @@ from labsupport.grading.common import (
     draw_configuration,
     elbow_height,
     formula_scoring,
+    gravity,
     judge_torque,
     own_gains_mistake,
     pan_error,
@@ -244,7 +245,7 @@ def _pd_mistakes(T, state, q_d, Kp, Kd):
             0.5,
         ),
         "with_gravity": Mistake(
-            Kp * e - Kd * qdot + terms(arm_model(), state.q, np.zeros(3)).h,
+            Kp * e - Kd * qdot + gravity(arm_model(), state.q),
             "you added gravity compensation g(q): a good law (PD plus gravity), but not the one asked for; "
             "the plain PD uses no model, and its sag under gravity is what this Problem measures.",
             0.5,
@@ -291,7 +292,7 @@ def _ct_mistakes(T, state, q_d, Kp, Kd):
         "no_damping": Mistake(M @ (Kp * e) + h, "the damping term −Kd q̇ inside M(q)(...) is missing.", 0.5),
         "damping_sign": Mistake(M @ (Kp * e + Kd * qdot) + h, "the damping has the wrong sign: it must be −Kd q̇.", 0.5),
         "bias_sign": Mistake(M @ v - h, "h(q, q̇) must be added, not subtracted.", 0.25),
-        "gravity_only": Mistake(M @ v + terms(arm_model(), state.q, np.zeros(3)).h, GRAVITY_ONLY, 0.5),
+        "gravity_only": Mistake(M @ v + gravity(arm_model(), state.q), GRAVITY_ONLY, 0.5),
         "outside": Mistake(
             M @ (Kp * e) - Kd * qdot + h, "the damping −Kd q̇ must sit inside M(q)(...), with the spring term.", 0.5
         ),

@@ -37,6 +37,7 @@ from labsupport.grading.common import (
     draw_configuration,
     elbow_height,
     formula_scoring,
+    gravity,
     judge_torque,
     mirror_elbow,
     over_the_top,
@@ -81,7 +82,7 @@ START_TOL = 1e-4  # [m]
 #: A numerical IK accurate to this distance [m] is graded as right in IK + joint CT (Problem 1's
 #: IK check takes one that stops at 1e-5 m). Where the reference is at rest, an IK off by δq
 #: changes the torque by M Kp δq (and q̈_d = J(q_d)⁻¹ẍ_d by a few percent of that): the check
-#: reads the offset back from the torque (:func:`_implied_ik_offset`) and allows twice this.
+#: reads the offset back from the torque (:func:`_ik_case`) and allows twice this.
 IK_APPROX = 1e-5
 #: The tracking check follows one turn of a seeded circle.
 TRACK_DURATION = 1 / FREQUENCY
@@ -163,7 +164,7 @@ def _os_expected(T, state, x_d, xd_d, xdd_d, Kp, Kd):
 
 def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
     M, h, J, jdq = T.M, T.h, T.J, T.jdq
-    gravity = terms(model, state.q, np.zeros(3)).h
+    g = gravity(model, state.q)
     e, edot = x_d - T.x, xd_d - J @ state.qdot
     jdq_reference = terms(model, state.q, np.linalg.solve(J, xd_d)).jdq  # J̇q̇ at the velocity J⁻¹ẋ_d
 
@@ -188,7 +189,7 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
         ),
         "no_bias": Mistake(law(xdd_d + fb - jdq) - h, "the bias term h(q, q̇) = data.qfrc_bias is missing.", 0.25),
         "bias_sign": Mistake(law(xdd_d + fb - jdq) - 2 * h, "h(q, q̇) must be added, not subtracted.", 0.25),
-        "gravity_only": Mistake(law(xdd_d + fb - jdq) - h + gravity, GRAVITY_ONLY, 0.5),
+        "gravity_only": Mistake(law(xdd_d + fb - jdq) - h + g, GRAVITY_ONLY, 0.5),
         "no_mass": Mistake(
             np.linalg.solve(J, xdd_d + fb - jdq) + h, "the mass matrix is missing: τ = M(q) J⁻¹(...) + h.", 0.25
         ),
@@ -315,7 +316,7 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
         ),
         "no_bias": Mistake(M @ (qdd_d + fb), "the bias term h(q, q̇) = data.qfrc_bias is missing.", 0.25),
         "bias_sign": Mistake(M @ (qdd_d + fb) - h, "h(q, q̇) must be added, not subtracted.", 0.25),
-        "gravity_only": Mistake(M @ (qdd_d + fb) + terms(model, q, np.zeros(3)).h, GRAVITY_ONLY, 0.5),
+        "gravity_only": Mistake(M @ (qdd_d + fb) + gravity(model, q), GRAVITY_ONLY, 0.5),
         "no_damping": Mistake(
             M @ (qdd_d + Kp * (q_d - q)) + h, "the damping term Kd (q̇_d − q̇) inside M(q)(...) is missing.", 0.5
         ),
@@ -375,7 +376,8 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
 
 def _ik_case(model, case: Case):
     """At the case's tested state: IK + joint CT's torque, the J̇q̇ a torque implies, MuJoCo's J̇q̇
-    at the reference and the named mistakes."""
+    at the reference, the IK offset a torque implies (where the reference is at rest) and the
+    named mistakes."""
     state = case.states[-1]
     T = terms(model, state.q, state.qdot, state.t)
     q_d, qd_d, qdd_d = case.q_d[-1], case.qd_d[-1], case.qdd_d[-1]
@@ -388,18 +390,14 @@ def _ik_case(model, case: Case):
         qdd = np.linalg.solve(T.M, tau - T.h) - Kd * (qd_d - state.qdot) - Kp * (q_d - state.q)
         return xdd_d - Td.J @ qdd
 
-    return expected, implied_jdq, Td.jdq, _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd)
+    def implied_ik_offset(tau):
+        r"""How far [m] from :math:`x_d` the :math:`q_d` lies that would make ``tau`` the torque
+        where the reference is at rest, everything else exact:
+        :math:`\delta x = J(q_d)\,(K_p M)^{-1}(\tau - \tau_{\text{formula}})`."""
+        return float(np.linalg.norm(Td.J @ np.linalg.solve(T.M, tau - expected)) / Kp)
 
-
-def _implied_ik_offset(model, case: Case, tau, expected) -> float:
-    r"""How far [m] from :math:`x_d` the :math:`q_d` lies that would make ``tau`` IK + joint CT's
-    torque at a case whose reference is at rest, everything else exact (``expected``, the
-    formula's torque, has the exact :math:`q_d`):
-    :math:`\delta x = J(q_d)\,(K_p M)^{-1}(\tau - \tau_{\text{formula}})`."""
-    state = case.states[-1]
-    M = terms(model, state.q, state.qdot, state.t).M
-    J_d = terms(model, case.q_d[-1], case.qd_d[-1]).J
-    return float(np.linalg.norm(J_d @ np.linalg.solve(M, tau - expected)) / case.Kp)
+    mistakes = _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd)
+    return expected, implied_jdq, Td.jdq, implied_ik_offset, mistakes
 
 
 def check_ik_ct(probe: Probe, seed: int) -> Result:
@@ -412,8 +410,8 @@ def check_ik_ct(probe: Probe, seed: int) -> Result:
             tau = call_along(probe, fname, case, lambda k, c=case: (c.x_d[k], c.xd_d[k], c.xdd_d[k], c.Kp, c.Kd))
         except StudentError as err:
             return refused(name, label, err)
-        expected, implied, jdq, mistakes = _ik_case(model, case)
-        if case.still and _implied_ik_offset(model, case, tau, expected) <= 2 * IK_APPROX:
+        expected, implied, jdq, ik_offset, mistakes = _ik_case(model, case)
+        if case.still and ik_offset(tau) <= 2 * IK_APPROX:
             verdict = Verdict(1.0, "")  # a numerical IK's q_d
         elif case.still:
             verdict = judge_torque(tau, expected, mistakes, rtol=STILL_RTOL)
