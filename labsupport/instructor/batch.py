@@ -15,7 +15,9 @@ reason saying to ask for it again); the other files and the subfolders are named
 left aside and listed in ``OUT/batch.json`` (a subfolder holding notebooks says how many).
 ``OUT/batch.json`` also records the seed, the spec, the date and the versions, so that
 ``--seed`` reproduces every grade; ``OUT/rubric.md`` says how each check scores and what
-partial credit each mistake it names keeps (``OUT/rubric_canvas.csv``: the same, for Canvas).
+partial credit each mistake it names keeps (``OUT/rubric_canvas.csv``: the same, for Canvas);
+``OUT/similarity.csv`` and ``OUT/similarity.html`` list the notebooks that share code with each
+other or with the master's solution (:mod:`labsupport.instructor.similarity`).
 A row whose grading failed ("error") or ran out of wall-clock time ("timed out: regrade") gets
 no score, never a zero. Every message is written on one line, without control characters
 (student code writes into them); the files are the owner's alone when run as a command, and
@@ -64,7 +66,7 @@ import mujoco
 
 import labsupport
 from labsupport.grading import registry
-from labsupport.instructor import isolation, judge
+from labsupport.instructor import isolation, judge, similarity
 from labsupport.instructor.assign import SPECS, load_spec
 from labsupport.instructor.canvas import (
     BATCH_RESULTS,
@@ -253,10 +255,15 @@ def run_batch(
         "seconds": round(elapsed, 1),
         "reproduce": f"--seed {seed}",
     }
-    _write_results(out, spec, rows, record)
+    try:  # a lead for the instructor: nothing in it may cost the grades
+        shared = similarity.similarity_reports({name: data for name, data, _ in payloads if data}, spec)
+    except Exception as err:
+        shared = {}
+        print(f"the shared-code report was not written: {clean_text(str(err))}", file=sys.stderr)
+    _write_results(out, spec, rows, record, shared)
     print(
         f"{len(rows)} submissions graded in {elapsed:.1f} s with {jobs} at once (seed {seed}); "
-        f"see {Path(out) / 'grades.csv'}"
+        f"see {Path(out) / 'grades.csv'}" + (f"; pairs sharing code: {Path(out) / 'similarity.html'}" if shared else "")
     )
     return rows
 
@@ -325,13 +332,14 @@ def feedback_names(files: list[str]) -> dict[str, str]:
     return names
 
 
-def _write_results(out: Path, spec: dict, rows: list[dict], record: dict) -> None:
-    """Write ``grades.csv``, a feedback file per row, ``batch.json`` and the Problem's grading
+def _write_results(out: Path, spec: dict, rows: list[dict], record: dict, shared: dict[str, str]) -> None:
+    """Write ``grades.csv``, a feedback file per row, ``batch.json``, the Problem's grading
     rubric (``rubric.md``, and ``rubric_canvas.csv`` for Canvas: :mod:`labsupport.instructor.rubric`)
-    into ``out``; then remove the feedback files of an earlier batch
+    and the ``shared`` code reports (:mod:`labsupport.instructor.similarity`) into ``out``; then
+    remove the feedback files of an earlier batch
     (:func:`labsupport.instructor.canvas.remove_stale_feedback`).
-    An earlier batch's ``grades.csv`` and ``batch.json`` (its seed) move to ``out/previous/``
-    first, replacing what an even earlier one left there."""
+    An earlier batch's ``grades.csv``, ``batch.json`` (its seed) and code reports move to
+    ``out/previous/`` first, replacing what an even earlier one left there."""
     out = Path(out)
     keep_previous(out, BATCH_RESULTS)
     _atomic_write(out / "grades.csv", grades_csv(spec, rows, record["seed"]))
@@ -341,6 +349,8 @@ def _write_results(out: Path, spec: dict, rows: list[dict], record: dict) -> Non
     _atomic_write(out / "batch.json", json.dumps(record, indent=2) + "\n")
     _atomic_write(out / "rubric.md", rubric(spec))
     _atomic_write(out / "rubric_canvas.csv", canvas_rubric_csv(spec))
+    for name, text in shared.items():
+        _atomic_write(out / name, text)
     remove_stale_feedback(out / "feedback", set(names.values()))
 
 

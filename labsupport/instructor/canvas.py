@@ -17,8 +17,9 @@ Gradebook's *Export* gives, grades each student's notebook with
 * ``OUT/report.txt``: what was graded and what was not, and why (grades in Canvas that the
   import replaces, files that match no student, students with no submission, unreadable files,
   late work, resubmissions, scaling);
-* ``OUT/batch/``: the batch grader's own ``grades.csv`` and feedback, and the Problem's rubric
-  (``rubric.md``, and ``rubric_canvas.csv`` for the course's *Rubrics → Import Rubric*).
+* ``OUT/batch/``: the batch grader's own ``grades.csv`` and feedback, the Problem's rubric
+  (``rubric.md``, and ``rubric_canvas.csv`` for the course's *Rubrics → Import Rubric*), and
+  the pairs of students who share code (``similarity.html``: :mod:`labsupport.instructor.similarity`).
 
 A regrade into the same ``OUT`` first moves the earlier run's import, report and zip into
 ``OUT/previous/``, and the earlier batch's results into ``OUT/batch/previous/``
@@ -202,7 +203,7 @@ def remove_stale_feedback(folder: Path, keep: set[str]) -> None:
 
 
 #: The files a batch writes that a regrade into the same folder moves into ``previous/``.
-BATCH_RESULTS = ("grades.csv", "batch.json")
+BATCH_RESULTS = ("grades.csv", "batch.json", "similarity.csv", "similarity.html")
 #: The same for a Canvas run: the import, the report and the feedback zip.
 CANVAS_RESULTS = ("gradebook_import.csv", "report.txt", "feedback_upload.zip")
 

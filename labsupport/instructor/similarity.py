@@ -1,0 +1,195 @@
+"""Which submissions share code with each other, or with the master's solution: a lead for the
+instructor, never a grade.
+
+The batch grader (:mod:`labsupport.instructor.batch`, and so the Canvas command too) writes
+two files beside ``grades.csv``:
+
+* ``similarity.csv``: one row per pair of notebooks where either has at least
+  :data:`FLAG_SHARE` of its own code in the other, most shared first: the two files (one may be
+  the master's solution), the share of each one's own code found in the other, and how many
+  characters of (tokenised) code they share;
+* ``similarity.html``: the same pairs side by side, the shared passages marked, for reading in
+  a browser (one self-contained page).
+
+A notebook's own code is the source of its code cells (outputs are never read), less the cells
+left exactly as handed out, and less every passage of the student notebook as handed out (the
+stubs' signatures and docstrings, say), which every submission shares by design. Two notebooks
+are compared with `copydetect <https://github.com/blingenf/copydetect>`_, which fingerprints
+code as MOSS does (winnowed k-grams of its tokens, every name replaced by one placeholder):
+renamed variables and dropped comments do not hide a copy, and passages shorter than about 25
+tokens do not count (a one-line PD law is the same in every right answer).
+
+Measured on Problem 1: independently written right answers share 7 to 37 % of their own code
+(its laws are short, its IK a textbook formula); a copy shares 100 %, even with its variables
+renamed and its comments dropped. Read the marked passages before concluding anything. The
+master's solution is compared too where the checkout holds it (``spec["master"]``): the
+masters are in the course repository, so a public repository shows them to anyone who looks.
+"""
+
+from __future__ import annotations
+
+import csv
+import html
+import io
+import itertools
+from dataclasses import dataclass
+
+from copydetect import CodeFingerprint, compare_files
+from copydetect.defaults import NOISE_THRESHOLD
+from copydetect.utils import highlight_overlap
+
+from labsupport.instructor import judge
+from labsupport.instructor.assign import ROOT
+from labsupport.instructor.canvas import clean_text
+
+#: A pair is listed when either notebook has at least this share of its own code in the other.
+FLAG_SHARE = 0.6
+#: The name the master's solution goes by in the reports.
+MASTER = "master solution"
+#: Code longer than this [characters] is not compared (a right answer is a few thousand).
+MAX_CODE_CHARS = 1_000_000
+
+
+@dataclass(frozen=True)
+class Pair:
+    """Two notebooks that share code: ``share_a`` of ``a``'s own code is in ``b``, and
+    ``share_b`` of ``b``'s in ``a``; ``shared`` counts the shared characters of tokenised code;
+    ``marked_a`` and ``marked_b`` are each one's code as HTML, shared passages in ``<mark>``."""
+
+    a: str
+    b: str
+    share_a: float
+    share_b: float
+    shared: int
+    marked_a: str
+    marked_b: str
+
+
+def own_code(data: bytes, handed_out: frozenset[str] = frozenset()) -> str:
+    """The source of a notebook's code cells, one after the other, less the cells that are
+    exactly as handed out (``handed_out``: their sources); ``ValueError`` if it is not a notebook
+    (:func:`labsupport.instructor.judge.read_cells`)."""
+    return "\n\n".join(source for _, source in judge.read_cells(data) if source not in handed_out)
+
+
+def _fingerprint(name: str, code: str, boilerplate) -> CodeFingerprint:
+    """copydetect's fingerprint of ``code`` (Python), less the fingerprints in ``boilerplate``."""
+    return CodeFingerprint(name, NOISE_THRESHOLD, 1, boilerplate, filter=True, language="python", fp=io.StringIO(code))
+
+
+def similar_pairs(
+    codes: dict[str, str], handed_out: str, master: str | None = None, flag: float = FLAG_SHARE
+) -> list[Pair]:
+    """Every pair of ``codes`` (name -> code), and each of them with the ``master`` solution,
+    where either has at least ``flag`` of its own code in the other; most shared first. Code
+    found in ``handed_out`` (the student notebook's) is nobody's own."""
+    boilerplate = sorted(_fingerprint("handed_out", handed_out, None).hashes)
+    everyone = dict(codes) if master is None else {**codes, MASTER: master}
+    prints = {name: _fingerprint(name, code, boilerplate) for name, code in everyone.items()}
+    pairs = []
+    for a, b in itertools.combinations(prints, 2):
+        if b == MASTER or a == MASTER:
+            a, b = (b, a) if a == MASTER else (a, b)  # the master on the right
+        shared, (share_a, share_b), (slices_a, slices_b) = compare_files(prints[a], prints[b])
+        if not shared or max(share_a, share_b) < flag:
+            continue
+        marked_a, _ = highlight_overlap(everyone[a], slices_a, "<mark>", "</mark>", escape_html=True)
+        marked_b, _ = highlight_overlap(everyone[b], slices_b, "<mark>", "</mark>", escape_html=True)
+        pairs.append(Pair(a, b, float(share_a), float(share_b), int(shared), marked_a, marked_b))
+    return sorted(pairs, key=lambda p: (-max(p.share_a, p.share_b), p.a, p.b))
+
+
+def similarity_csv(pairs: list[Pair]) -> str:
+    """The text of ``similarity.csv``: a row per pair, shares in percent."""
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(["file", "other", "file's own code in other [%]", "other's own code in file [%]", "shared"])
+    for p in pairs:
+        writer.writerow(
+            [clean_text(p.a), clean_text(p.b), f"{100 * p.share_a:.0f}", f"{100 * p.share_b:.0f}", p.shared]
+        )
+    return buf.getvalue()
+
+
+_STYLE = """
+body { font-family: system-ui, sans-serif; margin: 1.5rem; color: #1a1a1a; background: #fff; }
+.pair { display: grid; grid-template-columns: repeat(auto-fit, minmax(28rem, 1fr)); gap: 1rem; }
+pre { background: #f6f6f6; padding: .5rem; overflow-x: auto; font-size: .85rem; }
+mark { background: #ffd54f; color: #1a1a1a; }
+table { border-collapse: collapse; } th, td { border: 1px solid #999; padding: .25rem .5rem; }
+"""
+
+
+def similarity_html(pairs: list[Pair], problem: str, compared: int, flag: float = FLAG_SHARE) -> str:
+    """``similarity.html``: a table of the pairs, then each pair's code side by side, the shared
+    passages marked."""
+    e = html.escape
+    rows = "".join(
+        f'<tr><td><a href="#pair-{i}">{e(p.a)}</a></td><td>{e(p.b)}</td>'
+        f"<td>{100 * p.share_a:.0f} %</td><td>{100 * p.share_b:.0f} %</td></tr>"
+        for i, p in enumerate(pairs, 1)
+    )
+    table = (
+        "<table><caption>Pairs, most shared first</caption><tr><th scope='col'>file</th>"
+        "<th scope='col'>other</th><th scope='col'>its own code found in the other</th>"
+        f"<th scope='col'>the other's found in it</th></tr>{rows}</table>"
+        if pairs
+        else "<p>No pair reaches that share.</p>"
+    )
+    sections = "".join(
+        f'<section id="pair-{i}"><h2>{i}. {e(p.a)} and {e(p.b)}</h2><div class="pair">'
+        f"<div><h3>{e(p.a)} ({100 * p.share_a:.0f} % of its own code shared)</h3><pre>{p.marked_a}</pre></div>"
+        f"<div><h3>{e(p.b)} ({100 * p.share_b:.0f} % of its own code shared)</h3><pre>{p.marked_b}</pre></div>"
+        "</div></section>"
+        for i, p in enumerate(pairs, 1)
+    )
+    return (
+        f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>Shared code: {e(problem)}</title>'
+        f'<meta name="viewport" content="width=device-width, initial-scale=1"><style>{_STYLE}</style></head>'
+        f"<body><main><h1>Shared code: {e(problem)}</h1><p>{compared} notebooks compared with each other and "
+        f"with the master's solution where there is one. Listed: the pairs where either notebook has at least "
+        f"{100 * flag:.0f} % of its own code (what it adds to the notebook as handed out) in the other. Shared "
+        "passages are <mark>marked</mark>; names and comments do not matter. In a trial on Problem 1, "
+        "independently written right answers shared 7 to 37 % of their own code, and copies 100 %: read the "
+        "marked passages before concluding anything.</p>"
+        f"{table}{sections}</main></body></html>\n"
+    )
+
+
+def handed_out_and_master(spec: dict) -> tuple[frozenset[str], str | None]:
+    """The code cells of the student notebook as handed out (their sources), and the master's
+    own code (``None`` where this checkout does not hold it), for the Problem of ``spec``;
+    ``ValueError`` without the former, since every submission holds it."""
+    try:
+        handed_out = frozenset(source for _, source in judge.read_cells((ROOT / spec["student"]).read_bytes()))
+    except (KeyError, TypeError, OSError, ValueError) as err:
+        raise ValueError(
+            f"the student notebook of {spec.get('problem')} (the spec's 'student', {spec.get('student')!r}) cannot "
+            f"be read ({err}): regenerate the spec with labsupport.instructor.assign"
+        ) from None
+    master_path = ROOT / spec.get("master", "")
+    try:
+        master = own_code(master_path.read_bytes(), handed_out) if master_path.is_file() else None
+    except ValueError:
+        master = None
+    return handed_out, master
+
+
+def similarity_reports(notebooks: dict[str, bytes], spec: dict, flag: float = FLAG_SHARE) -> dict[str, str]:
+    """The texts of ``similarity.csv`` and ``similarity.html`` (by file name) for ``notebooks``
+    (file name -> bytes) of the Problem of ``spec``; files that are not notebooks, or hold more
+    than :data:`MAX_CODE_CHARS` of code, are left out (the grades say why they are unreadable)."""
+    handed_out, master = handed_out_and_master(spec)
+    codes = {}
+    for name, data in notebooks.items():
+        try:
+            code = own_code(data, handed_out)
+        except ValueError:
+            continue
+        if len(code) <= MAX_CODE_CHARS:
+            codes[name] = code
+    pairs = similar_pairs(codes, "\n\n".join(sorted(handed_out)), master, flag)
+    return {
+        "similarity.csv": similarity_csv(pairs),
+        "similarity.html": similarity_html(pairs, spec["problem"], len(codes), flag),
+    }

@@ -1,0 +1,137 @@
+"""The shared-code report (``similarity.csv``, ``similarity.html``) that the batch grader writes.
+
+It must name a copy of the master's solution or of another student, even with its variables
+renamed and its comments dropped, and leave independently written right answers unnamed; it
+shows student code only as escaped text; and nothing in it can cost the grades.
+"""
+
+import csv
+import json
+import re
+import shutil
+from pathlib import Path
+
+import nbformat
+import pytest
+from hostile.build import unusual_problem2
+
+from labsupport.instructor import batch, similarity
+from labsupport.instructor.assign import load_spec
+
+ROOT = Path(__file__).resolve().parents[1]
+SPEC1 = load_spec(ROOT / "tests" / "autograder" / "problem1.json")
+SPEC2 = load_spec(ROOT / "tests" / "autograder" / "problem2.json")
+BLANK = (ROOT / SPEC1["student"]).read_bytes()
+#: Problem 1 solved another way (numerical IK, gain matrices, mj_mulM), written apart from the master.
+UNUSUAL = (ROOT / "tests" / "hostile" / "unusual_but_right.ipynb").read_bytes()
+#: Problem 2's master with its three functions written another way.
+UNUSUAL2 = nbformat.writes(unusual_problem2(nbformat.read(ROOT / SPEC2["master"], as_version=4))).encode()
+#: Names a copier changes, as a whole word.
+RENAMES = {"rho": "radius", "theta": "elbow", "q1": "pan", "q2": "lift", "qddot_cmd": "acc", "M": "inertia"}
+
+
+def disguised_copy(spec: dict) -> bytes:
+    """The student notebook with each TODO answered by the master's solution, its variables
+    renamed and its comments dropped: what a student who found the master would hand in."""
+    master = nbformat.read(ROOT / spec["master"], as_version=4)
+    student = nbformat.read(ROOT / spec["student"], as_version=4)
+    solutions = {c.id: c.source for c in master.cells if c.cell_type == "code" and "# BEGIN SOLUTION" in c.source}
+    cells = {c.id: c for c in student.cells}
+    assert solutions and set(solutions) <= set(cells)  # the student cells keep the masters' ids
+    for cell_id, source in solutions.items():
+        cell = cells[cell_id]
+        lines = [line for line in source.splitlines() if "SOLUTION" not in line and "# STUDENT:" not in line]
+        code = re.sub(r"\s*#.*", "", "\n".join(lines))
+        for old, new in RENAMES.items():
+            code = re.sub(rf"\b{old}\b", new, code)
+        cell.source = code
+    return nbformat.writes(student).encode()
+
+
+def _pairs(reports: dict[str, str]) -> dict[tuple[str, str], dict]:
+    rows = csv.DictReader(reports["similarity.csv"].splitlines())
+    return {(r["file"], r["other"]): r for r in rows}
+
+
+@pytest.mark.parametrize("spec", [SPEC1, SPEC2], ids=["problem1", "problem2"])
+def test_a_disguised_copy_of_the_master_is_named_and_an_independent_answer_is_not(spec):
+    unusual = UNUSUAL if spec is SPEC1 else UNUSUAL2
+    copy = disguised_copy(spec)
+    assert b"radius" in copy or b"inertia" in copy  # the renames took
+    pairs = _pairs(similarity.similarity_reports({"copier.ipynb": copy, "other.ipynb": unusual}, spec))
+    assert set(pairs) == {("copier.ipynb", similarity.MASTER)}
+    row = pairs["copier.ipynb", similarity.MASTER]
+    assert float(row["file's own code in other [%]"]) >= 90
+
+
+def test_a_copy_of_another_student_is_named_both_ways_round():
+    reports = similarity.similarity_reports({"a.ipynb": UNUSUAL, "b.ipynb": UNUSUAL, "c.ipynb": BLANK}, SPEC1)
+    pairs = _pairs(reports)
+    assert set(pairs) == {("a.ipynb", "b.ipynb")}
+    assert pairs["a.ipynb", "b.ipynb"]["file's own code in other [%]"] == "100"
+
+
+def test_a_lower_flag_lists_more_and_every_pair_listed_shares_code():
+    handed_out, master = similarity.handed_out_and_master(SPEC1)
+    codes = {"copier": similarity.own_code(disguised_copy(SPEC1), handed_out)}
+    codes["unusual"] = similarity.own_code(UNUSUAL, handed_out)
+    boilerplate = "\n\n".join(sorted(handed_out))
+    flagged = similarity.similar_pairs(codes, boilerplate, master)
+    everything = similarity.similar_pairs(codes, boilerplate, master, flag=1e-9)
+    assert [(p.a, p.b) for p in flagged] == [("copier", similarity.MASTER)]
+    assert len(everything) >= len(flagged) and all(p.shared > 0 and "<mark>" in p.marked_a for p in everything)
+
+
+def test_the_notebook_as_handed_out_is_nobodys_own_code():
+    handed_out, _ = similarity.handed_out_and_master(SPEC1)
+    assert similarity.own_code(BLANK, handed_out) == ""
+    assert _pairs(similarity.similarity_reports({"a.ipynb": BLANK, "b.ipynb": BLANK}, SPEC1)) == {}
+
+
+def test_student_code_and_file_names_reach_the_page_only_as_text():
+    nb = nbformat.read(ROOT / SPEC1["student"], as_version=4)
+    nb.cells.append(nbformat.v4.new_code_cell('evil = "</pre><script>alert(1)</script>"\n' + "x = 1 + 2 * 3\n" * 20))
+    data = nbformat.writes(nb).encode()
+    reports = similarity.similarity_reports({"<img src=x onerror=alert(1)>.ipynb": data, "b.ipynb": data}, SPEC1)
+    page = reports["similarity.html"]
+    assert "<script>" not in page and "<img" not in page
+    assert "&lt;script&gt;" in page and "&lt;img src=x" in page
+    assert '<html lang="en">' in page and "<caption>" in page
+
+
+def test_unreadable_files_are_left_out_of_the_comparison():
+    reports = similarity.similarity_reports({"a.ipynb": b"{not json", "b.ipynb": UNUSUAL}, SPEC1)
+    assert "1 notebooks compared" in reports["similarity.html"]
+
+
+def _argv(subs: Path, out: Path, spec: Path) -> list[str]:
+    return ["--spec", str(spec), str(subs), "--out", str(out), "--jobs", "1", "--unsafe-no-sandbox"]
+
+
+def test_the_batch_writes_the_report_and_a_regrade_keeps_the_earlier_one(tmp_path):
+    subs = tmp_path / "subs"
+    subs.mkdir()
+    (subs / "copier.ipynb").write_bytes(disguised_copy(SPEC1))
+    out = tmp_path / "out"
+    spec = ROOT / "tests" / "autograder" / "problem1.json"
+    batch.main(_argv(subs, out, spec))
+    first = (out / "similarity.csv").read_text(encoding="utf-8")
+    assert "copier.ipynb,master solution," in first
+    (subs / "copier.ipynb").write_bytes(BLANK)
+    batch.main(_argv(subs, out, spec))
+    assert (out / "previous" / "similarity.csv").read_text(encoding="utf-8") == first
+    assert len((out / "similarity.csv").read_text(encoding="utf-8").splitlines()) == 1  # the header alone
+
+
+def test_a_report_that_cannot_be_made_costs_no_grade(tmp_path, capsys):
+    """A spec whose student notebook is gone: the grades are written all the same."""
+    spec = tmp_path / "spec.json"
+    spec.write_text(json.dumps({**SPEC1, "student": "notebooks/no_such_notebook.ipynb"}), encoding="utf-8")
+    subs = tmp_path / "subs"
+    subs.mkdir()
+    shutil.copy(ROOT / SPEC1["student"], subs / "blank.ipynb")
+    out = tmp_path / "out"
+    batch.main(_argv(subs, out, spec))
+    assert (out / "grades.csv").is_file() and not (out / "similarity.csv").exists()
+    err = capsys.readouterr().err
+    assert "shared-code report was not written" in err and "no_such_notebook" in err
