@@ -99,9 +99,15 @@ def test_student_code_and_file_names_reach_the_page_only_as_text():
     assert '<html lang="en">' in page and "<caption>" in page
 
 
-def test_unreadable_files_are_left_out_of_the_comparison():
-    reports = similarity.similarity_reports({"a.ipynb": b"{not json", "b.ipynb": UNUSUAL}, SPEC1)
-    assert "1 notebooks compared" in reports["similarity.html"]
+def test_unreadable_and_oversized_notebooks_are_left_out_and_named():
+    nb = nbformat.read(ROOT / SPEC1["student"], as_version=4)
+    nb.cells.append(nbformat.v4.new_code_cell("x = (1 + 2) * 3\n" * 20_000))
+    reports = similarity.similarity_reports(
+        {"a.ipynb": b"{not json", "b.ipynb": UNUSUAL, "c.ipynb": nbformat.writes(nb).encode()}, SPEC1
+    )
+    page = reports["similarity.html"]
+    assert "Notebooks compared: 1," in page
+    assert "a.ipynb (not a notebook the grader can read)" in page and "c.ipynb (320,000 characters" in page
 
 
 def _argv(subs: Path, out: Path, spec: Path) -> list[str]:

@@ -46,8 +46,9 @@ from labsupport.instructor.canvas import clean_text
 FLAG_SHARE = 0.6
 #: The name the master's solution goes by in the reports.
 MASTER = "master solution"
-#: Code longer than this [characters] is not compared (a right answer is a few thousand).
-MAX_CODE_CHARS = 1_000_000
+#: A notebook with more own code than this [characters] is not compared: a right answer is a
+#: few thousand, and fingerprinting this much takes about 2 s.
+MAX_CODE_CHARS = 200_000
 
 
 @dataclass(frozen=True)
@@ -113,17 +114,33 @@ def similarity_csv(pairs: list[Pair]) -> str:
 
 _STYLE = """
 body { font-family: system-ui, sans-serif; margin: 1.5rem; color: #1a1a1a; background: #fff; }
-.pair { display: grid; grid-template-columns: repeat(auto-fit, minmax(28rem, 1fr)); gap: 1rem; }
+.pair { display: grid; grid-template-columns: repeat(auto-fit, minmax(min(28rem, 100%), 1fr)); gap: 1rem; }
 pre { background: #f6f6f6; padding: .5rem; overflow-x: auto; font-size: .85rem; }
 mark { background: #ffd54f; color: #1a1a1a; }
-table { border-collapse: collapse; } th, td { border: 1px solid #999; padding: .25rem .5rem; }
+table { border-collapse: collapse; max-width: 100%; }
+th, td { border: 1px solid #999; padding: .25rem .5rem; overflow-wrap: anywhere; }
 """
 
 
-def similarity_html(pairs: list[Pair], problem: str, compared: int, flag: float = FLAG_SHARE) -> str:
+def _side(name: str, share: float, marked: str) -> str:
+    """One notebook's half of a pair on the page; its code scrolls sideways, by keyboard too."""
+    return (
+        f"<div><h3>{html.escape(name)} ({100 * share:.0f} % of its own code shared)</h3>"
+        f"<pre tabindex='0'>{marked}</pre></div>"
+    )
+
+
+def similarity_html(
+    pairs: list[Pair], problem: str, compared: int, left_out: dict[str, str], flag: float = FLAG_SHARE
+) -> str:
     """``similarity.html``: a table of the pairs, then each pair's code side by side, the shared
-    passages marked."""
+    passages marked; ``left_out`` maps the notebooks not compared to why."""
     e = html.escape
+    not_compared = (
+        "<p>Not compared: " + "; ".join(f"{e(name)} ({e(why)})" for name, why in sorted(left_out.items())) + ".</p>"
+        if left_out
+        else ""
+    )
     rows = "".join(
         f'<tr><td><a href="#pair-{i}">{e(p.a)}</a></td><td>{e(p.b)}</td>'
         f"<td>{100 * p.share_a:.0f} %</td><td>{100 * p.share_b:.0f} %</td></tr>"
@@ -138,21 +155,19 @@ def similarity_html(pairs: list[Pair], problem: str, compared: int, flag: float 
     )
     sections = "".join(
         f'<section id="pair-{i}"><h2>{i}. {e(p.a)} and {e(p.b)}</h2><div class="pair">'
-        f"<div><h3>{e(p.a)} ({100 * p.share_a:.0f} % of its own code shared)</h3><pre>{p.marked_a}</pre></div>"
-        f"<div><h3>{e(p.b)} ({100 * p.share_b:.0f} % of its own code shared)</h3><pre>{p.marked_b}</pre></div>"
-        "</div></section>"
+        f"{_side(p.a, p.share_a, p.marked_a)}{_side(p.b, p.share_b, p.marked_b)}</div></section>"
         for i, p in enumerate(pairs, 1)
     )
     return (
         f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>Shared code: {e(problem)}</title>'
         f'<meta name="viewport" content="width=device-width, initial-scale=1"><style>{_STYLE}</style></head>'
-        f"<body><main><h1>Shared code: {e(problem)}</h1><p>{compared} notebooks compared with each other and "
+        f"<body><main><h1>Shared code: {e(problem)}</h1><p>Notebooks compared: {compared}, with each other and "
         f"with the master's solution where there is one. Listed: the pairs where either notebook has at least "
         f"{100 * flag:.0f} % of its own code (what it adds to the notebook as handed out) in the other. Shared "
         "passages are <mark>marked</mark>; names and comments do not matter. In a trial on Problem 1, "
         "independently written right answers shared 7 to 37 % of their own code, and copies 100 %: read the "
         "marked passages before concluding anything.</p>"
-        f"{table}{sections}</main></body></html>\n"
+        f"{not_compared}{table}{sections}</main></body></html>\n"
     )
 
 
@@ -178,18 +193,21 @@ def handed_out_and_master(spec: dict) -> tuple[frozenset[str], str | None]:
 def similarity_reports(notebooks: dict[str, bytes], spec: dict, flag: float = FLAG_SHARE) -> dict[str, str]:
     """The texts of ``similarity.csv`` and ``similarity.html`` (by file name) for ``notebooks``
     (file name -> bytes) of the Problem of ``spec``; files that are not notebooks, or hold more
-    than :data:`MAX_CODE_CHARS` of code, are left out (the grades say why they are unreadable)."""
+    than :data:`MAX_CODE_CHARS` of own code, are left out, and the page says so."""
     handed_out, master = handed_out_and_master(spec)
-    codes = {}
+    codes, left_out = {}, {}
     for name, data in notebooks.items():
         try:
             code = own_code(data, handed_out)
         except ValueError:
+            left_out[name] = "not a notebook the grader can read"
             continue
-        if len(code) <= MAX_CODE_CHARS:
+        if len(code) > MAX_CODE_CHARS:
+            left_out[name] = f"{len(code):,} characters of its own code, more than {MAX_CODE_CHARS:,}"
+        else:
             codes[name] = code
     pairs = similar_pairs(codes, "\n\n".join(sorted(handed_out)), master, flag)
     return {
         "similarity.csv": similarity_csv(pairs),
-        "similarity.html": similarity_html(pairs, spec["problem"], len(codes), flag),
+        "similarity.html": similarity_html(pairs, spec["problem"], len(codes), left_out, flag),
     }
