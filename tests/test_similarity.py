@@ -9,6 +9,8 @@ import csv
 import json
 import re
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import nbformat
@@ -141,3 +143,12 @@ def test_a_report_that_cannot_be_made_costs_no_grade(tmp_path, capsys):
     assert (out / "grades.csv").is_file() and not (out / "similarity.csv").exists()
     err = capsys.readouterr().err
     assert "shared-code report was not written" in err and "no_such_notebook" in err
+
+
+def test_an_environment_without_copydetect_is_told_how_to_get_it():
+    code = (
+        "import sys; sys.modules['copydetect'] = None\n"
+        "try:\n    import labsupport.instructor.batch\nexcept ImportError as err:\n    print(err)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert "needs copydetect" in out and "bash .ci/setup" in out

@@ -34,9 +34,15 @@ import io
 import itertools
 from dataclasses import dataclass
 
-from copydetect import CodeFingerprint, compare_files
-from copydetect.defaults import NOISE_THRESHOLD
-from copydetect.utils import highlight_overlap
+try:
+    from copydetect import CodeFingerprint, compare_files
+    from copydetect.defaults import NOISE_THRESHOLD
+    from copydetect.utils import highlight_overlap
+except ImportError as err:  # a checkout whose environment predates the report
+    raise ImportError(
+        "the batch grader's shared-code report needs copydetect: run `bash .ci/setup` from the repository root "
+        "(or `pip install -e '.[instructor]'`)"
+    ) from err
 
 from labsupport.instructor import judge
 from labsupport.instructor.assign import ROOT
