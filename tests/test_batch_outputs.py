@@ -476,7 +476,7 @@ def test_canvas_grades_can_be_reproduced_with_their_seed(tmp_path, capsys, monke
     assert stop.value.code == 2 and "argument --seed: give a whole number" in capsys.readouterr().err
     seeds = []
 
-    def run_batch(folder, spec_path, out, jobs=None, seed=None):
+    def run_batch(folder, spec_path, out, jobs=None, seed=None, compare_with=None):
         seeds.append(seed)
         return fake_grade([])(folder, spec_path, out)
 

@@ -78,8 +78,8 @@ def test_a_lower_flag_lists_more_and_every_pair_listed_shares_code():
     codes = {"copier": similarity.own_code(disguised_copy(SPEC1), handed_out)}
     codes["unusual"] = similarity.own_code(UNUSUAL, handed_out)
     boilerplate = "\n\n".join(sorted(handed_out))
-    flagged = similarity.similar_pairs(codes, boilerplate, master)
-    everything = similarity.similar_pairs(codes, boilerplate, master, flag=1e-9)
+    flagged = similarity.similar_pairs(codes, boilerplate, {similarity.MASTER: master})
+    everything = similarity.similar_pairs(codes, boilerplate, {similarity.MASTER: master}, flag=1e-9)
     assert [(p.a, p.b) for p in flagged] == [("copier", similarity.MASTER)]
     assert len(everything) >= len(flagged) and all(p.shared > 0 and "<mark>" in p.marked_a for p in everything)
 
@@ -108,7 +108,7 @@ def test_unreadable_and_oversized_notebooks_are_left_out_and_named():
         {"a.ipynb": b"{not json", "b.ipynb": UNUSUAL, "c.ipynb": nbformat.writes(nb).encode()}, SPEC1
     )
     page = reports["similarity.html"]
-    assert "Notebooks compared: 1," in page
+    assert "Submissions compared: 1," in page
     assert "a.ipynb (not a notebook the grader can read)" in page and "c.ipynb (320,000 characters" in page
 
 
@@ -129,6 +129,46 @@ def test_the_batch_writes_the_report_and_a_regrade_keeps_the_earlier_one(tmp_pat
     batch.main(_argv(subs, out, spec))
     assert (out / "previous" / "similarity.csv").read_text(encoding="utf-8") == first
     assert len((out / "similarity.csv").read_text(encoding="utf-8").splitlines()) == 1  # the header alone
+
+
+def test_earlier_notebooks_are_compared_with_the_submissions_not_graded_and_not_with_each_other(tmp_path, capsys):
+    subs, earlier = tmp_path / "subs", tmp_path / "2025"
+    subs.mkdir()
+    earlier.mkdir()
+    (subs / "copier.ipynb").write_bytes(UNUSUAL)
+    (subs / "blank.ipynb").write_bytes(BLANK)
+    (earlier / "last_year.ipynb").write_bytes(UNUSUAL)
+    (earlier / "last_year_twin.ipynb").write_bytes(UNUSUAL)
+    out = tmp_path / "out"
+    spec = ROOT / "tests" / "autograder" / "problem1.json"
+    batch.main([*_argv(subs, out, spec), "--compare-with", str(earlier)])
+    with open(out / "grades.csv", newline="", encoding="utf-8") as f:
+        assert {r["file"] for r in csv.DictReader(f)} == {"copier.ipynb", "blank.ipynb"}
+    pairs = _pairs({"similarity.csv": (out / "similarity.csv").read_text(encoding="utf-8")})
+    assert set(pairs) == {("copier.ipynb", "2025/last_year.ipynb"), ("copier.ipynb", "2025/last_year_twin.ipynb")}
+    assert "reference notebooks" in (out / "similarity.html").read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize(
+    "where, words",
+    [("missing", "no such folder"), ("empty", "no .ipynb file"), ("subs", "is the submissions folder")],
+)
+def test_a_compare_with_folder_that_cannot_serve_is_refused_before_grading(tmp_path, capsys, where, words):
+    subs = tmp_path / "subs"
+    subs.mkdir()
+    (subs / "a.ipynb").write_bytes(BLANK)
+    (tmp_path / "empty").mkdir()
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as stop:
+        batch.main(
+            [
+                *_argv(subs, out, ROOT / "tests" / "autograder" / "problem1.json"),
+                "--compare-with",
+                str(tmp_path / where),
+            ]
+        )
+    assert stop.value.code == 2 and words in capsys.readouterr().err
+    assert not out.exists()
 
 
 def test_a_report_that_cannot_be_made_costs_no_grade(tmp_path, capsys):
@@ -152,3 +192,26 @@ def test_an_environment_without_copydetect_is_told_how_to_get_it():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert "needs copydetect" in out and "bash .ci/setup" in out
+
+
+def test_the_canvas_command_takes_compare_with_to_the_batch(tmp_path, capsys, monkeypatch):
+    from labsupport.instructor import canvas
+
+    fixtures = ROOT / "tests" / "fixtures" / "canvas"
+    argv = ["--problem", "problem1", str(fixtures / "submissions.zip"), "--gradebook"]
+    argv += [str(fixtures / "gradebook_export.csv"), "--out", str(tmp_path / "out"), "--compare-with"]
+    with pytest.raises(SystemExit) as stop:
+        canvas.main([*argv, str(tmp_path / "missing")])
+    assert stop.value.code == 2 and "no such folder" in capsys.readouterr().err
+    earlier = tmp_path / "2025"
+    earlier.mkdir()
+    (earlier / "last_year.ipynb").write_bytes(UNUSUAL)
+    seen = {}
+
+    def run_batch(folder, spec_path, out, **options):
+        seen.update(options)
+        return []
+
+    monkeypatch.setattr(batch, "run_batch", run_batch)
+    canvas.main([*argv, str(earlier)])
+    assert seen["compare_with"] == [earlier]

@@ -181,6 +181,7 @@ def run_batch(
     seed: int | None = None,
     unsafe_no_sandbox: bool = False,
     budget: judge.Budget | None = None,
+    compare_with: list[Path] | None = None,
 ) -> list[dict]:
     """Grade every notebook in ``submissions``; writes ``out/grades.csv``, ``out/feedback/`` and
     ``out/batch.json``.
@@ -190,6 +191,8 @@ def run_batch(
         seed: the test states' seed (default: a fresh secret one, recorded in ``batch.json``).
         unsafe_no_sandbox: grade without bubblewrap (trusted submissions only; every row says so).
         budget: the CPU and idle limits (default :class:`labsupport.instructor.judge.Budget`).
+        compare_with: folders of earlier notebooks (last year's, say) that the shared-code report
+            compares the submissions with; they are not graded.
 
     Raises:
         ValueError: ``submissions`` is not a folder, ``seed`` is negative, or ``out`` cannot be
@@ -256,7 +259,8 @@ def run_batch(
         "reproduce": f"--seed {seed}",
     }
     try:  # a lead for the instructor: nothing in it may cost the grades
-        shared = similarity.similarity_reports({name: data for name, data, _ in payloads if data}, spec)
+        submitted = {name: data for name, data, _ in payloads if data}
+        shared = similarity.similarity_reports(submitted, spec, earlier_notebooks(compare_with or []))
     except Exception as err:
         shared = {}
         print(f"the shared-code report was not written: {clean_text(str(err))}", file=sys.stderr)
@@ -266,6 +270,21 @@ def run_batch(
         f"see {Path(out) / 'grades.csv'}" + (f"; pairs sharing code: {Path(out) / 'similarity.html'}" if shared else "")
     )
     return rows
+
+
+def earlier_notebooks(folders: list[Path]) -> dict[str, bytes]:
+    """The notebooks at the top of each of ``folders``, by ``<folder name>/<file name>`` (the
+    folder as given where two share a name), for the shared-code report; one that cannot be read
+    is named on stderr and left out."""
+    notebooks = {}
+    for folder in folders:
+        for path in list_notebooks(folder):
+            name = f"{folder.name}/{path.name}"
+            try:
+                notebooks[f"{folder}/{path.name}" if name in notebooks else name] = path.read_bytes()
+            except OSError as err:
+                print(f"not compared: {clean_text(str(path))} ({err.strerror})", file=sys.stderr)
+    return notebooks
 
 
 def _sha256(path: Path) -> str:
@@ -375,6 +394,31 @@ def _check_submissions_folder(parser: argparse.ArgumentParser, folder: Path) -> 
         )
 
 
+def compare_with_argument(parser: argparse.ArgumentParser) -> None:
+    """``--compare-with FOLDER``, repeatable: earlier notebooks for the shared-code report."""
+    parser.add_argument(
+        "--compare-with",
+        type=Path,
+        action="append",
+        default=[],
+        metavar="FOLDER",
+        help="a folder of earlier notebooks (last year's, say) to compare the submissions with in "
+        "similarity.html; they are not graded (repeat for several folders)",
+    )
+
+
+def check_compare_with(parser: argparse.ArgumentParser, folders: list[Path], submissions: Path | None) -> None:
+    """Stop with what to do when a ``--compare-with`` folder is missing, holds no notebook, or is
+    the submissions folder itself (whose notebooks are compared with each other already)."""
+    for folder in folders:
+        if not folder.is_dir():
+            parser.error(f"--compare-with {folder}: no such folder")
+        if not any(is_notebook(p) for p in folder.iterdir()):
+            parser.error(f"--compare-with {folder}: no .ipynb file at its top level")
+        if submissions is not None and folder.resolve() == submissions.resolve():
+            parser.error(f"--compare-with {folder} is the submissions folder: its notebooks are compared already")
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(
         description="Grade a folder of student notebooks into a CSV (outputs are ignored: they need not be executed)."
@@ -403,6 +447,7 @@ def main(argv=None) -> None:
         action="store_true",
         help="grade without bubblewrap: only for submissions you trust (every row says so)",
     )
+    compare_with_argument(parser)
     args = parser.parse_args(argv)
     spec = args.spec or SPECS / f"{args.problem}.json"
     if args.spec and not args.spec.is_file():
@@ -418,6 +463,7 @@ def main(argv=None) -> None:
     if not args.timeout > 0:
         parser.error(f"--timeout must be a positive number of seconds, got {args.timeout}")
     _check_submissions_folder(parser, args.submissions)
+    check_compare_with(parser, args.compare_with, args.submissions)
     try:
         run_batch(
             args.submissions,
@@ -427,6 +473,7 @@ def main(argv=None) -> None:
             args.timeout,
             seed=args.seed,
             unsafe_no_sandbox=args.unsafe_no_sandbox,
+            compare_with=args.compare_with,
         )
     except (ValueError, isolation.SandboxUnavailable) as err:
         parser.exit(2, f"{parser.prog}: cannot grade: {err}\n")

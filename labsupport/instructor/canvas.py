@@ -668,13 +668,15 @@ def grade_canvas(
     jobs: int | None = None,
     grade: GradeFn | None = None,
     seed: int | None = None,
+    compare_with: list[Path] | None = None,
 ) -> CanvasResult:
     """Grade a Canvas zip into a copy of a Canvas gradebook export; writes OUT as the module says.
 
     ``grade(folder, spec_path, out)`` grades a folder of notebooks and returns the batch rows
     (``file``, ``status``, ``scores``, ``messages``, ``notes``); by default it is
     :func:`labsupport.instructor.batch.run_batch` with ``jobs`` and ``seed`` (a fresh secret
-    one if None; ``OUT/batch/batch.json`` records it, so ``--seed`` reproduces every grade).
+    one if None; ``OUT/batch/batch.json`` records it, so ``--seed`` reproduces every grade) and
+    ``compare_with`` (folders of earlier notebooks for the shared-code report).
     """
     spec_path, out = Path(spec_path), Path(out)
     spec = load_spec(spec_path)
@@ -704,7 +706,7 @@ def grade_canvas(
             f"cannot write the output folder {out} ({err.strerror}): give --out a folder you can write to"
         ) from None
     keep_previous(out, CANVAS_RESULTS)
-    rows = _grade(Path(submissions_zip), chosen, spec_path, out, result, grade or _run_batch(jobs, seed))
+    rows = _grade(Path(submissions_zip), chosen, spec_path, out, result, grade or _run_batch(jobs, seed, compare_with))
     _record_scores(gradebook, col, spec, chosen, rows, out, result)
     remove_stale_feedback(out / "feedback", {path.name for path in result.feedback.values()})
     (out / "gradebook_import.csv").write_bytes(fill_column(gradebook, col, result.scores).encode("utf-8"))
@@ -713,13 +715,13 @@ def grade_canvas(
     return result
 
 
-def _run_batch(jobs: int | None, seed: int | None = None) -> GradeFn:
+def _run_batch(jobs: int | None, seed: int | None = None, compare_with: list[Path] | None = None) -> GradeFn:
     def grade(folder: Path, spec_path: Path, out: Path) -> list[dict]:
         # Imported here: the batch grader is heavy and this module's reading and writing of Canvas
         # files must work (and be tested) without it.
         from labsupport.instructor.batch import run_batch
 
-        return run_batch(folder, spec_path, out, jobs=jobs, seed=seed)
+        return run_batch(folder, spec_path, out, jobs=jobs, seed=seed, compare_with=compare_with)
 
     return grade
 
@@ -1012,7 +1014,11 @@ def main(argv=None) -> None:
         default=None,
         help="seed of the test states (default: a fresh secret one; OUT/batch/batch.json records it)",
     )
+    from labsupport.instructor.batch import check_compare_with, compare_with_argument  # heavy: the grader
+
+    compare_with_argument(parser)
     args = parser.parse_args(argv)
+    check_compare_with(parser, args.compare_with, None)
     spec = args.spec or SPECS / f"{args.problem}.json"
     if args.problem and not spec.is_file():
         known = ", ".join(sorted(p.stem for p in SPECS.glob("*.json")))
@@ -1023,7 +1029,16 @@ def main(argv=None) -> None:
         if not Path(path).is_file():
             parser.error(f"no {what} at {path}" + (": give --spec PATH" if what == "autograder spec" else ""))
     try:
-        result = grade_canvas(args.submissions, args.gradebook, spec, args.out, args.column, args.jobs, seed=args.seed)
+        result = grade_canvas(
+            args.submissions,
+            args.gradebook,
+            spec,
+            args.out,
+            args.column,
+            args.jobs,
+            seed=args.seed,
+            compare_with=args.compare_with,
+        )
     except ValueError as err:
         parser.error(str(err))
     if result.warning:

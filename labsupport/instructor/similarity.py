@@ -11,6 +11,10 @@ two files beside ``grades.csv``:
 * ``similarity.html``: the same pairs side by side, the shared passages marked, for reading in
   a browser (one self-contained page).
 
+Each submission is compared with the others, with the master's solution and with the notebooks
+of any ``--compare-with FOLDER`` (earlier years' submissions, say: references, not graded and
+not compared with each other).
+
 A notebook's own code is the source of its code cells (outputs are never read), less the cells
 left exactly as handed out, and less every passage of the student notebook as handed out (the
 stubs' signatures and docstrings, say), which every submission shares by design. Two notebooks
@@ -85,18 +89,19 @@ def _fingerprint(name: str, code: str, boilerplate) -> CodeFingerprint:
 
 
 def similar_pairs(
-    codes: dict[str, str], handed_out: str, master: str | None = None, flag: float = FLAG_SHARE
+    codes: dict[str, str], handed_out: str, references: dict[str, str] | None = None, flag: float = FLAG_SHARE
 ) -> list[Pair]:
-    """Every pair of ``codes`` (name -> code), and each of them with the ``master`` solution,
-    where either has at least ``flag`` of its own code in the other; most shared first. Code
-    found in ``handed_out`` (the student notebook's) is nobody's own."""
+    """Every pair of ``codes`` (name -> own code), and each of them with each of ``references``
+    (the master's solution, earlier years' notebooks: compared with the submissions, not with
+    each other), where either has at least ``flag`` of its own code in the other; most shared
+    first, a reference always second. Code found in ``handed_out`` (the student notebook's) is
+    nobody's own."""
+    references = references or {}
     boilerplate = sorted(_fingerprint("handed_out", handed_out, None).hashes)
-    everyone = dict(codes) if master is None else {**codes, MASTER: master}
+    everyone = {**references, **codes}
     prints = {name: _fingerprint(name, code, boilerplate) for name, code in everyone.items()}
     pairs = []
-    for a, b in itertools.combinations(prints, 2):
-        if b == MASTER or a == MASTER:
-            a, b = (b, a) if a == MASTER else (a, b)  # the master on the right
+    for a, b in [*itertools.combinations(codes, 2), *itertools.product(codes, references)]:
         shared, (share_a, share_b), (slices_a, slices_b) = compare_files(prints[a], prints[b])
         if not shared or max(share_a, share_b) < flag:
             continue
@@ -137,10 +142,12 @@ def _side(name: str, share: float, marked: str) -> str:
 
 
 def similarity_html(
-    pairs: list[Pair], problem: str, compared: int, left_out: dict[str, str], flag: float = FLAG_SHARE
+    pairs: list[Pair], problem: str, compared: int, references: int, left_out: dict[str, str], flag: float = FLAG_SHARE
 ) -> str:
     """``similarity.html``: a table of the pairs, then each pair's code side by side, the shared
-    passages marked; ``left_out`` maps the notebooks not compared to why."""
+    passages marked; ``compared`` submissions were compared with each other and with
+    ``references`` notebooks (the master's solution, earlier years'), and ``left_out`` maps the
+    notebooks not compared to why."""
     e = html.escape
     not_compared = (
         "<p>Not compared: " + "; ".join(f"{e(name)} ({e(why)})" for name, why in sorted(left_out.items())) + ".</p>"
@@ -167,8 +174,9 @@ def similarity_html(
     return (
         f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>Shared code: {e(problem)}</title>'
         f'<meta name="viewport" content="width=device-width, initial-scale=1"><style>{_STYLE}</style></head>'
-        f"<body><main><h1>Shared code: {e(problem)}</h1><p>Notebooks compared: {compared}, with each other and "
-        f"with the master's solution where there is one. Listed: the pairs where either notebook has at least "
+        f"<body><main><h1>Shared code: {e(problem)}</h1><p>Submissions compared: {compared}, with each other "
+        f"and with {references} reference notebooks (the master's solution where there is one, and any earlier "
+        "notebooks given with --compare-with). Listed: the pairs where either notebook has at least "
         f"{100 * flag:.0f} % of its own code (what it adds to the notebook as handed out) in the other. Shared "
         "passages are <mark>marked</mark>; names and comments do not matter. In a trial on Problem 1, "
         "independently written right answers shared 7 to 37 % of their own code, and copies 100 %: read the "
@@ -196,12 +204,10 @@ def handed_out_and_master(spec: dict) -> tuple[frozenset[str], str | None]:
     return handed_out, master
 
 
-def similarity_reports(notebooks: dict[str, bytes], spec: dict, flag: float = FLAG_SHARE) -> dict[str, str]:
-    """The texts of ``similarity.csv`` and ``similarity.html`` (by file name) for ``notebooks``
-    (file name -> bytes) of the Problem of ``spec``; files that are not notebooks, or hold more
-    than :data:`MAX_CODE_CHARS` of own code, are left out, and the page says so."""
-    handed_out, master = handed_out_and_master(spec)
-    codes, left_out = {}, {}
+def _own_codes(notebooks: dict[str, bytes], handed_out: frozenset[str], left_out: dict[str, str]) -> dict[str, str]:
+    """Each notebook's own code (:func:`own_code`), by name; a notebook that cannot be compared
+    goes into ``left_out`` instead, with the reason."""
+    codes = {}
     for name, data in notebooks.items():
         try:
             code = own_code(data, handed_out)
@@ -212,8 +218,25 @@ def similarity_reports(notebooks: dict[str, bytes], spec: dict, flag: float = FL
             left_out[name] = f"{len(code):,} characters of its own code, more than {MAX_CODE_CHARS:,}"
         else:
             codes[name] = code
-    pairs = similar_pairs(codes, "\n\n".join(sorted(handed_out)), master, flag)
+    return codes
+
+
+def similarity_reports(
+    notebooks: dict[str, bytes], spec: dict, earlier: dict[str, bytes] | None = None, flag: float = FLAG_SHARE
+) -> dict[str, str]:
+    """The texts of ``similarity.csv`` and ``similarity.html`` (by file name) for ``notebooks``
+    (file name -> bytes) of the Problem of ``spec``, compared with each other, with the master's
+    solution and with the ``earlier`` notebooks (say, last year's, named by folder and file).
+    Files that are not notebooks, or hold more than :data:`MAX_CODE_CHARS` of own code, are left
+    out, and the page says so."""
+    handed_out, master = handed_out_and_master(spec)
+    left_out = {}
+    codes = _own_codes(notebooks, handed_out, left_out)
+    references = _own_codes(earlier or {}, handed_out, left_out)
+    if master is not None:
+        references[MASTER] = master
+    pairs = similar_pairs(codes, "\n\n".join(sorted(handed_out)), references, flag)
     return {
         "similarity.csv": similarity_csv(pairs),
-        "similarity.html": similarity_html(pairs, spec["problem"], len(codes), left_out, flag),
+        "similarity.html": similarity_html(pairs, spec["problem"], len(codes), len(references), left_out, flag),
     }
