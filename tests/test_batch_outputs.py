@@ -232,6 +232,15 @@ def test_student_text_cannot_forge_lines_or_write_control_characters(tmp_path):
     assert _one_score_line(feedback) == "Score: 0 / 10   (status: graded)"
 
 
+def test_a_file_name_a_spreadsheet_would_run_as_a_formula_is_written_as_text(tmp_path):
+    """A student names the upload so that Excel or LibreOffice, opening grades.csv, would run it."""
+    names = ['=HYPERLINK("x","open me").ipynb', "+1.ipynb", "-2.ipynb", "@SUM(A1).ipynb", "plain.ipynb"]
+    subs = _folder(tmp_path / "subs", dict.fromkeys(names, BLANK))
+    batch.run_batch(subs, SPEC, tmp_path / "out", jobs=1, seed=1, unsafe_no_sandbox=True)
+    assert set(_rows(tmp_path / "out")) == {"'" + n for n in names[:-1]} | {"plain.ipynb"}
+    assert canvas.csv_cell("\t=1") == " =1" and canvas.csv_cell("a=1") == "a=1"
+
+
 def test_canvas_feedback_and_report_keep_student_text_on_one_line(tmp_path):
     def grade(folder, spec_path, out):
         scores, messages = dict.fromkeys(CHECKS, 0.0), dict.fromkeys(CHECKS, NASTY)

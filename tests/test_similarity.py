@@ -94,7 +94,8 @@ def test_student_code_and_file_names_reach_the_page_only_as_text():
     nb = nbformat.read(ROOT / SPEC1["student"], as_version=4)
     nb.cells.append(nbformat.v4.new_code_cell('evil = "</pre><script>alert(1)</script>"\n' + "x = 1 + 2 * 3\n" * 20))
     data = nbformat.writes(nb).encode()
-    reports = similarity.similarity_reports({"<img src=x onerror=alert(1)>.ipynb": data, "b.ipynb": data}, SPEC1)
+    reports = similarity.similarity_reports({"<img src=x onerror=alert(1)>.ipynb": data, "=B(1).ipynb": data}, SPEC1)
+    assert ("<img src=x onerror=alert(1)>.ipynb", "'=B(1).ipynb") in _pairs(reports)  # a spreadsheet shows text
     page = reports["similarity.html"]
     assert "<script>" not in page and "<img" not in page
     assert "&lt;script&gt;" in page and "&lt;img src=x" in page

@@ -73,6 +73,7 @@ from labsupport.instructor.canvas import (
     FEEDBACK_HEADER,
     STRIP_OUTPUTS_BYTES,
     clean_text,
+    csv_cell,
     keep_previous,
     keep_private,
     remove_stale_feedback,
@@ -331,7 +332,7 @@ def grades_csv(spec: dict, rows: list[dict], seed: int) -> str:
         else:
             scores = [row["scores"].get(n, 0.0) for n in names]
             cells = [f"{s:g}" for s in scores] + [f"{sum(scores):g}"]
-        writer.writerow([clean_text(row["file"]), spec["problem"], *cells, f"{maximum:g}", row["status"], reason, seed])
+        writer.writerow([csv_cell(row["file"]), spec["problem"], *cells, f"{maximum:g}", row["status"], reason, seed])
     return buf.getvalue()
 
 

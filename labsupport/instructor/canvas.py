@@ -167,6 +167,18 @@ def clean_text(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
     return shown
 
 
+#: What a spreadsheet reads as the start of a formula when a cell begins with it.
+_FORMULA_STARTS = ("=", "+", "-", "@")
+
+
+def csv_cell(text: str) -> str:
+    """``text`` as :func:`clean_text` makes it, and written so that a spreadsheet shows it as text:
+    one that begins as a formula does (``=HYPERLINK(...)``, ``+1``, ``@SUM``) gets a leading ``'``.
+    For the cells of a grader's CSV that a student's file name fills."""
+    text = clean_text(text)
+    return "'" + text if text.startswith(_FORMULA_STARTS) else text
+
+
 def _visible(c: str) -> str:
     """One character as :func:`clean_text` writes it."""
     if c in "\t\n\r\v\f\x1c\x1d\x1e\x85\u2028\u2029":  # every character str.splitlines breaks at, and tab

@@ -50,7 +50,7 @@ except ImportError as err:  # a checkout whose environment predates the report
 
 from labsupport.instructor import judge
 from labsupport.instructor.assign import ROOT
-from labsupport.instructor.canvas import clean_text
+from labsupport.instructor.canvas import csv_cell
 
 #: A pair is listed when either notebook has at least this share of its own code in the other.
 FLAG_SHARE = 0.6
@@ -117,9 +117,7 @@ def similarity_csv(pairs: list[Pair]) -> str:
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(["file", "other", "file's own code in other [%]", "other's own code in file [%]", "shared"])
     for p in pairs:
-        writer.writerow(
-            [clean_text(p.a), clean_text(p.b), f"{100 * p.share_a:.0f}", f"{100 * p.share_b:.0f}", p.shared]
-        )
+        writer.writerow([csv_cell(p.a), csv_cell(p.b), f"{100 * p.share_a:.0f}", f"{100 * p.share_b:.0f}", p.shared])
     return buf.getvalue()
 
 
