@@ -216,3 +216,18 @@ def test_the_canvas_command_takes_compare_with_to_the_batch(tmp_path, capsys, mo
     monkeypatch.setattr(batch, "run_batch", run_batch)
     canvas.main([*argv, str(earlier)])
     assert seen["compare_with"] == [earlier]
+
+
+def test_a_huge_earlier_notebook_is_held_without_its_outputs(tmp_path, monkeypatch):
+    """Earlier years' notebooks are read as submissions are: one over ``STRIP_OUTPUTS_BYTES`` is
+    held without the outputs, which the comparison never reads."""
+    nb = nbformat.reads(UNUSUAL.decode(), as_version=4)
+    next(c for c in nb.cells if c.cell_type == "code").outputs = [nbformat.v4.new_output("stream", text="x" * 50_000)]
+    earlier = tmp_path / "2025"
+    earlier.mkdir()
+    (earlier / "big.ipynb").write_bytes(nbformat.writes(nb).encode())
+    monkeypatch.setattr(batch, "STRIP_OUTPUTS_BYTES", 40_000)
+    held = batch.earlier_notebooks([earlier])["2025/big.ipynb"]
+    assert len(held) < 40_000 and b"x" * 1000 not in held
+    pairs = _pairs(similarity.similarity_reports({"copier.ipynb": UNUSUAL}, SPEC1, {"2025/big.ipynb": held}))
+    assert set(pairs) == {("copier.ipynb", "2025/big.ipynb")}

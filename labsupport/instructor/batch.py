@@ -212,9 +212,7 @@ def run_batch(
     payloads = []
     for p in files:  # read everything first: nothing a submission does later can lose another one
         try:
-            data = p.read_bytes()
-            if len(data) > STRIP_OUTPUTS_BYTES:  # kept in memory until graded: only what is graded
-                data = without_outputs(data)
+            data = read_notebook(p)
             payloads.append((p.name, data, None) if data else (p.name, None, EMPTY_FILE))
         except OSError as err:
             payloads.append((p.name, None, f"could not read the file: {err.strerror}"))
@@ -273,6 +271,14 @@ def run_batch(
     return rows
 
 
+def read_notebook(path: Path) -> bytes:
+    """The bytes of the notebook at ``path``, without its outputs when it is over
+    ``STRIP_OUTPUTS_BYTES``: it is kept in memory until graded and compared, and only its code
+    is read."""
+    data = path.read_bytes()
+    return without_outputs(data) if len(data) > STRIP_OUTPUTS_BYTES else data
+
+
 def earlier_notebooks(folders: list[Path]) -> dict[str, bytes]:
     """The notebooks at the top of each of ``folders``, by ``<folder name>/<file name>`` (the
     folder as given where two share a name), for the shared-code report; one that cannot be read
@@ -282,7 +288,7 @@ def earlier_notebooks(folders: list[Path]) -> dict[str, bytes]:
         for path in list_notebooks(folder):
             name = f"{folder.name}/{path.name}"
             try:
-                notebooks[f"{folder}/{path.name}" if name in notebooks else name] = path.read_bytes()
+                notebooks[f"{folder}/{path.name}" if name in notebooks else name] = read_notebook(path)
             except OSError as err:
                 print(f"not compared: {clean_text(str(path))} ({err.strerror})", file=sys.stderr)
     return notebooks
