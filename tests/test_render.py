@@ -21,6 +21,9 @@ import pytest
 
 from labsupport import gl, plots, render
 
+#: Encoding a video needs the ffmpeg program (.ci/setup installs it; a GPU image may lack it).
+needs_ffmpeg = pytest.mark.skipif(shutil.which("ffmpeg") is None, reason="ffmpeg is not installed")
+
 SCRIPT = r"""
 import json, os, sys
 import numpy as np
@@ -318,14 +321,18 @@ def test_nvidia_egl_listing_leaves_every_other_machine_alone(glvnd, monkeypatch)
 
 def test_nvidias_library_is_found_on_the_library_path_as_colab_installs_it(tmp_path):
     """Colab puts the driver's libraries in a folder of ``LD_LIBRARY_PATH``, with no unversioned
-    ``.so`` and no entry in the loader's cache: what glvnd's ``dlopen`` finds must count."""
+    ``.so`` and no entry in the loader's cache: what glvnd's ``dlopen`` finds must count.
+
+    The stand-in library has a name of its own, since on a machine with an NVIDIA GPU the real
+    ``libEGL_nvidia.so.0`` loads without the folder too."""
     libc = ctypes.util.find_library("c")
     found = subprocess.run(["ldconfig", "-p"], capture_output=True, text=True).stdout
     path = re.search(rf"{re.escape(libc)} \(libc6,x86-64\) => (\S+)", found)
     if path is None:
         pytest.skip("no x86-64 libc in the loader's cache to stand in for NVIDIA's library")
-    shutil.copy(path.group(1), tmp_path / gl.NVIDIA_EGL_LIBRARY)  # a library that loads, by that name
-    probe = "from labsupport import gl; print(gl.library_loads(gl.NVIDIA_EGL_LIBRARY))"
+    stand_in = "libEGL_course_stand_in.so.0"  # versioned, as NVIDIA's is, and nowhere else
+    shutil.copy(path.group(1), tmp_path / stand_in)
+    probe = f"from labsupport import gl; print(gl.library_loads({stand_in!r}))"
     env = dict(os.environ, LD_LIBRARY_PATH=str(tmp_path))
     run = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=120)
     assert run.stdout.split() == ["True"], run.stderr
@@ -367,6 +374,7 @@ def test_a_listed_nvidia_library_that_cannot_load_leaves_mesa_rendering(tmp_path
     _assert_real_frames(frames)
 
 
+@needs_ffmpeg
 def test_video_has_a_text_alternative():
     frames = np.random.default_rng(0).integers(0, 255, (6, 48, 64, 3), dtype=np.uint8)
     html = render.video_html(frames, fps=6, title="a run", description="The arm <moves> round the circle.")
@@ -379,6 +387,7 @@ def test_video_has_a_text_alternative():
             render.video_html(frames, fps=6, description=missing)
 
 
+@needs_ffmpeg
 def test_video_waits_for_the_reader():
     """No video starts by itself (WCAG 2.2.2): it has controls and no autoplay attribute."""
     frames = np.zeros((4, 16, 16, 3), dtype=np.uint8)
@@ -496,7 +505,6 @@ def no_ffmpeg(monkeypatch):
     mediapy.set_ffmpeg("ffmpeg")
 
 
-@pytest.mark.skipif(shutil.which("ffmpeg") is None, reason="ffmpeg is not installed")
 def test_without_ffmpeg_the_videos_say_how_to_get_it_and_the_notebook_goes_on(no_ffmpeg, monkeypatch, capsys):
     frames = np.zeros((4, 48, 64, 3), dtype=np.uint8)
     with pytest.raises(render.RenderingUnavailable, match=r"ffmpeg.*%pip install imageio-ffmpeg"):
@@ -514,7 +522,7 @@ def test_without_ffmpeg_the_videos_say_how_to_get_it_and_the_notebook_goes_on(no
     )
 
 
-@pytest.mark.skipif(shutil.which("ffmpeg") is None, reason="ffmpeg is not installed")
+@needs_ffmpeg
 def test_the_ffmpeg_of_imageio_ffmpeg_is_used_when_none_is_on_the_path(no_ffmpeg, monkeypatch):
     bundled = shutil.which("ffmpeg")  # stands in for the program that imageio-ffmpeg ships
     monkeypatch.setitem(sys.modules, "imageio_ffmpeg", types.SimpleNamespace(get_ffmpeg_exe=lambda: bundled))
