@@ -17,7 +17,7 @@ import nbformat
 import pytest
 from hostile.build import unusual_problem2
 
-from labsupport.instructor import batch, similarity
+from labsupport.instructor import batch, compare, similarity
 from labsupport.instructor.assign import load_spec
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -184,6 +184,67 @@ def test_a_report_that_cannot_be_made_costs_no_grade(tmp_path, capsys):
     assert (out / "grades.csv").is_file() and not (out / "similarity.csv").exists()
     err = capsys.readouterr().err
     assert "shared-code report was not written" in err and "no_such_notebook" in err
+
+
+def test_the_compare_command_writes_the_batchs_report_and_leaves_the_grades(tmp_path, capsys):
+    """Run on a batch's output folder, it makes the batch's report again (the batch's goes into
+    previous/) and touches nothing else; --flag lowers the bar."""
+    subs = tmp_path / "subs"
+    subs.mkdir()
+    (subs / "copier.ipynb").write_bytes(disguised_copy(SPEC1))
+    partial = nbformat.reads(UNUSUAL.decode(), as_version=4)  # one of the master's answers, pasted in
+    master = nbformat.read(ROOT / SPEC1["master"], as_version=4)
+    partial.cells.append(
+        nbformat.v4.new_code_cell([c.source for c in master.cells if "# BEGIN SOLUTION" in c.source][-1])
+    )
+    (subs / "partial.ipynb").write_text(nbformat.writes(partial), encoding="utf-8")
+    (subs / "empty.ipynb").write_bytes(b"")
+    out = tmp_path / "out"
+    spec = ROOT / "tests" / "autograder" / "problem1.json"
+    batch.main(_argv(subs, out, spec))
+    graded = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    capsys.readouterr()
+    compare.main(["--problem", "problem1", str(subs), "--out", str(out)])
+    captured = capsys.readouterr()
+    assert "2 submissions compared; pairs where one has at least 60 % of its own code in the other: 1;" in captured.out
+    assert "not compared: empty.ipynb (the file is empty" in captured.err
+    now = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    for name in compare.REPORTS:
+        assert now[Path(name)] == graded[Path(name)]  # the same report as the batch's
+        assert now[Path("previous") / name] == graded[Path(name)]
+    assert {k: v for k, v in now.items() if k.parts[0] != "previous" and k.name not in compare.REPORTS} == {
+        k: v for k, v in graded.items() if k.name not in compare.REPORTS
+    }
+    compare.main(["--problem", "problem1", str(subs), "--out", str(out), "--flag", "0.05"])
+    lowered = _pairs({"similarity.csv": (out / "similarity.csv").read_text(encoding="utf-8")})
+    assert ("copier.ipynb", similarity.MASTER) in lowered and ("partial.ipynb", similarity.MASTER) in lowered
+    assert 5 <= float(lowered["partial.ipynb", similarity.MASTER]["other's own code in file [%]"]) < 60
+    assert "at least 5 %" in (out / "similarity.html").read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--flag", "0"], "--flag: must be a share above 0 and at most 1"),
+        (["--flag", "60"], "--flag: must be a share above 0 and at most 1"),
+        (["--flag", "nan"], "--flag: must be a share above 0 and at most 1"),
+        (["--problem", "problem7"], "problem7.json: the problems are problem1, problem2"),
+        (["SUBS/a.ipynb"], "is not a folder: give the folder that holds the .ipynb files"),
+        (["--compare-with", "SUBS"], "is the submissions folder"),
+    ],
+)
+def test_the_compare_command_says_what_is_wrong_and_writes_nothing(tmp_path, capsys, args, words):
+    subs = tmp_path / "subs"
+    subs.mkdir()
+    (subs / "a.ipynb").write_bytes(BLANK)
+    args = [a.replace("SUBS", str(subs)) for a in args]
+    folder = [a for a in args if a.endswith(".ipynb")] or [str(subs)]
+    options = [a for a in args if not a.endswith(".ipynb")]
+    problem = [] if "--problem" in options else ["--problem", "problem1"]
+    with pytest.raises(SystemExit) as stop:
+        compare.main([*problem, *options, *folder, "--out", str(tmp_path / "out")])
+    assert stop.value.code == 2 and words in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
 
 
 def test_an_environment_without_copydetect_is_told_how_to_get_it():

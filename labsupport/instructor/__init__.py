@@ -11,6 +11,7 @@ submission's reach: run it from a checkout of the course repository.
 ``judge``           grades one submission through a sandbox
 ``batch``           grades a folder of submissions into a CSV and feedback files
 ``similarity``      which submissions share code with each other or with a master's solution
+``compare``         the same shared-code report for a folder, without grading it
 ``rubric``          a Problem's grading rubric (points, scoring, each named mistake's credit)
 ``canvas``          Canvas "Download Submissions" zip + gradebook export → graded gradebook to import
 ==================  ===================================================================

@@ -75,6 +75,31 @@ def load_spec(path: Path) -> dict:
     return spec
 
 
+def problem_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--problem NAME`` or ``--spec PATH``, one of them required: the Problem an instructor's
+    command works on (read back with :func:`chosen_spec`)."""
+    which = parser.add_mutually_exclusive_group(required=True)
+    which.add_argument("--problem", help="problem1 or problem2 (reads tests/autograder/NAME.json)")
+    which.add_argument("--spec", type=Path, help="an autograder spec written by labsupport.instructor.assign")
+
+
+def chosen_spec(parser: argparse.ArgumentParser, args: argparse.Namespace) -> Path:
+    """The spec file that ``--problem`` or ``--spec`` named; where there is none, stop with the
+    problems there are, or with what to give instead."""
+    if args.spec is not None:
+        if not args.spec.is_file():
+            parser.error(f"no autograder spec at {args.spec}: give --spec PATH to a spec, or --problem NAME")
+        return args.spec
+    spec = SPECS / f"{args.problem}.json"
+    if not spec.is_file():
+        known = sorted(p.stem for p in SPECS.glob("*.json")) if SPECS.is_dir() else []
+        parser.error(
+            f"no autograder spec for --problem {args.problem} at {spec}: "
+            + (f"the problems are {', '.join(known)}" if known else "give --spec PATH")
+        )
+    return spec
+
+
 def strip_code(source: str, where: str) -> str:
     """The student's version of a code cell: solution blocks removed, ``# STUDENT:`` lines uncommented."""
     out, inside = [], False

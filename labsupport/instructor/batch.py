@@ -67,7 +67,7 @@ import mujoco
 import labsupport
 from labsupport.grading import registry
 from labsupport.instructor import isolation, judge, similarity
-from labsupport.instructor.assign import SPECS, load_spec
+from labsupport.instructor.assign import chosen_spec, load_spec, problem_arguments
 from labsupport.instructor.canvas import (
     BATCH_RESULTS,
     FEEDBACK_HEADER,
@@ -209,13 +209,8 @@ def run_batch(
     files, aside = list_notebooks(submissions), left_aside(submissions)
     if aside:  # nothing is left aside unsaid
         print("not graded (not .ipynb files): " + clean_text(", ".join(aside)), file=sys.stderr)
-    payloads = []
-    for p in files:  # read everything first: nothing a submission does later can lose another one
-        try:
-            data = read_notebook(p)
-            payloads.append((p.name, data, None) if data else (p.name, None, EMPTY_FILE))
-        except OSError as err:
-            payloads.append((p.name, None, f"could not read the file: {err.strerror}"))
+    # read everything first: nothing a submission does later can lose another one
+    payloads = read_submissions(files)
     seed = new_seed() if seed is None else int(seed)
     registry()  # the checks are loaded once, before the workers fork: every row uses the same code
     budget = budget or judge.Budget(wall=timeout)
@@ -258,8 +253,7 @@ def run_batch(
         "reproduce": f"--seed {seed}",
     }
     try:  # a lead for the instructor: nothing in it may cost the grades
-        submitted = {name: data for name, data, _ in payloads if data}
-        shared = similarity.similarity_reports(submitted, spec, earlier_notebooks(compare_with or []))
+        shared = shared_code_reports(payloads, spec, compare_with or [])
     except Exception as err:
         shared = {}
         print(f"the shared-code report was not written: {clean_text(str(err))}", file=sys.stderr)
@@ -269,6 +263,32 @@ def run_batch(
         f"see {Path(out) / 'grades.csv'}" + (f"; pairs sharing code: {Path(out) / 'similarity.html'}" if shared else "")
     )
     return rows
+
+
+def read_submissions(files: list[Path]) -> list[tuple[str, bytes | None, str | None]]:
+    """Each file's name, bytes (:func:`read_notebook`) and ``None``; or its name, ``None`` and
+    why it cannot be graded (empty, or unreadable)."""
+    payloads = []
+    for p in files:
+        try:
+            data = read_notebook(p)
+            payloads.append((p.name, data, None) if data else (p.name, None, EMPTY_FILE))
+        except OSError as err:
+            payloads.append((p.name, None, f"could not read the file: {err.strerror}"))
+    return payloads
+
+
+def shared_code_reports(
+    payloads: list[tuple[str, bytes | None, str | None]],
+    spec: dict,
+    compare_with: list[Path],
+    flag: float = similarity.FLAG_SHARE,
+) -> dict[str, str]:
+    """``similarity.csv`` and ``similarity.html`` (by file name) for the submissions read by
+    :func:`read_submissions`, compared with each other, with the master's solution and with the
+    notebooks of the ``compare_with`` folders (:func:`labsupport.instructor.similarity.similarity_reports`)."""
+    submitted = {name: data for name, data, _ in payloads if data}
+    return similarity.similarity_reports(submitted, spec, earlier_notebooks(compare_with), flag)
 
 
 def read_notebook(path: Path) -> bytes:
@@ -368,25 +388,26 @@ def _write_results(out: Path, spec: dict, rows: list[dict], record: dict, shared
     ``out/previous/`` first, replacing what an even earlier one left there."""
     out = Path(out)
     keep_previous(out, BATCH_RESULTS)
-    _atomic_write(out / "grades.csv", grades_csv(spec, rows, record["seed"]))
+    atomic_write(out / "grades.csv", grades_csv(spec, rows, record["seed"]))
     names = feedback_names([row["file"] for row in rows])
     for row in rows:
-        _atomic_write(out / "feedback" / names[row["file"]], feedback_text(row["file"], spec, row))
-    _atomic_write(out / "batch.json", json.dumps(record, indent=2) + "\n")
-    _atomic_write(out / "rubric.md", rubric(spec))
-    _atomic_write(out / "rubric_canvas.csv", canvas_rubric_csv(spec))
+        atomic_write(out / "feedback" / names[row["file"]], feedback_text(row["file"], spec, row))
+    atomic_write(out / "batch.json", json.dumps(record, indent=2) + "\n")
+    atomic_write(out / "rubric.md", rubric(spec))
+    atomic_write(out / "rubric_canvas.csv", canvas_rubric_csv(spec))
     for name, text in shared.items():
-        _atomic_write(out / name, text)
+        atomic_write(out / name, text)
     remove_stale_feedback(out / "feedback", set(names.values()))
 
 
-def _atomic_write(path: Path, text: str) -> None:
+def atomic_write(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` whole or not at all (a file beside it, then renamed)."""
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(text, encoding="utf-8")
     os.replace(tmp, path)
 
 
-def _check_submissions_folder(parser: argparse.ArgumentParser, folder: Path) -> None:
+def check_submissions_folder(parser: argparse.ArgumentParser, folder: Path) -> None:
     """Stop with what to do when ``folder`` is a zip, or holds no notebook at its top level."""
     if folder.is_file() and folder.suffix == ".zip":
         parser.error(
@@ -431,9 +452,7 @@ def main(argv=None) -> None:
         description="Grade a folder of student notebooks into a CSV (outputs are ignored: they need not be executed)."
     )
     parser.add_argument("submissions", type=Path, help="folder holding the students' .ipynb files")
-    which = parser.add_mutually_exclusive_group(required=True)
-    which.add_argument("--problem", help="problem1 or problem2 (reads tests/autograder/NAME.json)")
-    which.add_argument("--spec", type=Path, help="an autograder spec written by labsupport.instructor.assign")
+    problem_arguments(parser)
     parser.add_argument("--out", type=Path, required=True, help="folder for grades.csv, feedback/ and batch.json")
     parser.add_argument("--jobs", type=int, default=None, help="submissions graded at once (default: CPU count)")
     parser.add_argument(
@@ -456,20 +475,12 @@ def main(argv=None) -> None:
     )
     compare_with_argument(parser)
     args = parser.parse_args(argv)
-    spec = args.spec or SPECS / f"{args.problem}.json"
-    if args.spec and not args.spec.is_file():
-        parser.error(f"no autograder spec at {args.spec}")
-    if not Path(spec).is_file():
-        known = sorted(p.stem for p in SPECS.glob("*.json")) if SPECS.is_dir() else []
-        parser.error(
-            f"no autograder spec for --problem {args.problem} at {spec}: "
-            + (f"the problems are {', '.join(known)}" if known else "give --spec PATH")
-        )
+    spec = chosen_spec(parser, args)
     if args.jobs is not None and args.jobs < 1:
         parser.error(f"--jobs must be at least 1, got {args.jobs}")
     if not args.timeout > 0:
         parser.error(f"--timeout must be a positive number of seconds, got {args.timeout}")
-    _check_submissions_folder(parser, args.submissions)
+    check_submissions_folder(parser, args.submissions)
     check_compare_with(parser, args.compare_with, args.submissions)
     try:
         run_batch(

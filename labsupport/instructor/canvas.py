@@ -102,7 +102,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
-from labsupport.instructor.assign import SPECS, load_spec
+from labsupport.instructor.assign import chosen_spec, load_spec, problem_arguments
 
 #: Largest notebook read from the zip [bytes]: reading one takes that much memory, and no
 #: student's notebook comes near it; a bigger file is reported, not graded.
@@ -1011,9 +1011,7 @@ def main(argv=None) -> None:
         description="Grade a Canvas 'Download Submissions' zip into a Canvas gradebook export, ready to import."
     )
     parser.add_argument("submissions", type=Path, help="the zip that Canvas's Download Submissions gives")
-    which = parser.add_mutually_exclusive_group(required=True)
-    which.add_argument("--problem", help="problem1 or problem2 (reads tests/autograder/NAME.json)")
-    which.add_argument("--spec", type=Path, help="an autograder spec written by labsupport.instructor.assign")
+    problem_arguments(parser)
     parser.add_argument("--gradebook", type=Path, required=True, help="the CSV that Canvas's Grades -> Export gives")
     parser.add_argument("--column", help='the assignment column to fill, e.g. "Problem 1 (12345)" or 12345')
     parser.add_argument(
@@ -1031,15 +1029,12 @@ def main(argv=None) -> None:
     compare_with_argument(parser)
     args = parser.parse_args(argv)
     check_compare_with(parser, args.compare_with, None)
-    spec = args.spec or SPECS / f"{args.problem}.json"
-    if args.problem and not spec.is_file():
-        known = ", ".join(sorted(p.stem for p in SPECS.glob("*.json")))
-        parser.error(f"no autograder spec for --problem {args.problem}: the problems are {known}")
+    spec = chosen_spec(parser, args)
     if args.jobs is not None and args.jobs < 1:
         parser.error(f"--jobs must be at least 1, got {args.jobs}")
-    for path, what in ((spec, "autograder spec"), (args.submissions, "submissions zip"), (args.gradebook, "gradebook")):
+    for path, what in ((args.submissions, "submissions zip"), (args.gradebook, "gradebook")):
         if not Path(path).is_file():
-            parser.error(f"no {what} at {path}" + (": give --spec PATH" if what == "autograder spec" else ""))
+            parser.error(f"no {what} at {path}")
     try:
         result = grade_canvas(
             args.submissions,

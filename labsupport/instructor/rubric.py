@@ -34,7 +34,7 @@ from pathlib import Path
 from labsupport import __version__
 from labsupport.grading import PUBLIC_SEED, problem1, problem2
 from labsupport.grading.rules import FORBIDDEN
-from labsupport.instructor.assign import SPECS, load_spec
+from labsupport.instructor.assign import chosen_spec, load_spec, problem_arguments
 from labsupport.instructor.judge import DEFAULT_BUDGET
 
 _MODULES = (problem1, problem2)
@@ -161,21 +161,12 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(
         prog="python -m labsupport.instructor.rubric", description="Write the grading rubric of a Problem."
     )
-    which = parser.add_mutually_exclusive_group(required=True)
-    which.add_argument("--problem", help="the Problem, as its autograder spec is named (problem1)")
-    which.add_argument("--spec", type=Path, help="an autograder spec written by labsupport.instructor.assign")
+    problem_arguments(parser)
     parser.add_argument(
         "--out", type=Path, help="file to write (default: print); a name ending in .csv gets Canvas's import format"
     )
     args = parser.parse_args(argv)
-    spec_path = args.spec or SPECS / f"{args.problem}.json"
-    if not spec_path.is_file():
-        known = ", ".join(sorted(p.stem for p in SPECS.glob("*.json")))
-        parser.error(
-            f"no autograder spec at {spec_path}"
-            if args.spec
-            else f"no autograder spec for --problem {args.problem}: the problems are {known}"
-        )
+    spec_path = chosen_spec(parser, args)
     try:
         spec = load_spec(spec_path)
     except ValueError as err:  # not JSON, or not a spec of known checks

@@ -11,6 +11,9 @@ two files beside ``grades.csv``:
 * ``similarity.html``: the same pairs side by side, the shared passages marked, for reading in
   a browser (one self-contained page).
 
+``python -m labsupport.instructor.compare`` (:mod:`labsupport.instructor.compare`) makes the same
+report for a folder without grading it.
+
 Each submission is compared with the others, with the master's solution and with the notebooks
 of any ``--compare-with FOLDER`` (earlier years' submissions, say: references, not graded and
 not compared with each other).
@@ -175,7 +178,7 @@ def similarity_html(
         f"<body><main><h1>Shared code: {e(problem)}</h1><p>Submissions compared: {compared}, with each other "
         f"and with {references} reference notebooks (the master's solution where there is one, and any earlier "
         "notebooks given with --compare-with). Listed: the pairs where either notebook has at least "
-        f"{100 * flag:.0f} % of its own code (what it adds to the notebook as handed out) in the other. Shared "
+        f"{100 * flag:g} % of its own code (what it adds to the notebook as handed out) in the other. Shared "
         "passages are <mark>marked</mark>; names and comments do not matter. In a trial on Problem 1, "
         "independently written right answers shared 7 to 37 % of their own code, and copies 100 %: read the "
         "marked passages before concluding anything.</p>"

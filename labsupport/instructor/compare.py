@@ -1,0 +1,112 @@
+"""Compare a folder of submissions for shared code, without grading them.
+
+Usage (from the repository root)::
+
+    .venv/bin/python -m labsupport.instructor.compare --problem problem1 SUBMISSIONS --out REPORTS
+
+writes ``REPORTS/similarity.csv`` and ``REPORTS/similarity.html``: the report the batch grader
+writes beside ``grades.csv`` (:mod:`labsupport.instructor.similarity`), made the same way from
+the same notebooks, compared with each other, with the master's solution and with the notebooks
+of any ``--compare-with FOLDER``. It runs no student code, so it needs no sandbox and takes
+seconds where grading takes minutes. Use it to compare with another year's folder once the
+grades are in, or to list the pairs at a lower ``--flag`` (0.4, say) than the batch's
+:data:`~labsupport.instructor.similarity.FLAG_SHARE`. Given the batch's output folder, it moves
+the batch's report into ``previous/`` and leaves the grades as they are.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from labsupport.instructor.assign import chosen_spec, load_spec, problem_arguments
+from labsupport.instructor.batch import (
+    atomic_write,
+    check_compare_with,
+    check_submissions_folder,
+    compare_with_argument,
+    left_aside,
+    list_notebooks,
+    read_submissions,
+    shared_code_reports,
+)
+from labsupport.instructor.canvas import clean_text, keep_previous, keep_private
+from labsupport.instructor.similarity import FLAG_SHARE
+
+#: The files this command writes (and moves into ``previous/`` when an earlier run left them).
+REPORTS = ("similarity.csv", "similarity.html")
+
+
+def flag_argument(text: str) -> float:
+    """``--flag``: a share above 0 and at most 1."""
+    try:
+        flag = float(text)
+    except ValueError:
+        flag = float("nan")
+    if not 0 < flag <= 1:
+        raise argparse.ArgumentTypeError(f"must be a share above 0 and at most 1 (0.6 is 60 %), got {text!r}")
+    return flag
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(
+        prog="python -m labsupport.instructor.compare",
+        description="List the pairs of submissions that share code (similarity.csv, similarity.html), without "
+        "grading them.",
+    )
+    parser.add_argument("submissions", type=Path, help="folder holding the students' .ipynb files")
+    problem_arguments(parser)
+    parser.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        help="folder for similarity.csv and similarity.html (a batch's output folder too: its grades stay)",
+    )
+    parser.add_argument(
+        "--flag",
+        type=flag_argument,
+        default=FLAG_SHARE,
+        help=f"list a pair when either notebook has at least this share of its own code in the other "
+        f"(default {FLAG_SHARE}, as the batch grader)",
+    )
+    compare_with_argument(parser)
+    args = parser.parse_args(argv)
+    try:
+        spec = load_spec(chosen_spec(parser, args))
+    except ValueError as err:  # not JSON, or not a spec of known checks
+        parser.error(str(err))
+    if not args.submissions.is_dir() and args.submissions.suffix != ".zip":
+        parser.error(f"{args.submissions} is not a folder: give the folder that holds the .ipynb files")
+    check_submissions_folder(parser, args.submissions)
+    check_compare_with(parser, args.compare_with, args.submissions)
+    aside = left_aside(args.submissions)
+    if aside:
+        print("not compared (not .ipynb files): " + clean_text(", ".join(aside)), file=sys.stderr)
+    payloads = read_submissions(list_notebooks(args.submissions))
+    for name, _, why in payloads:
+        if why:
+            print(f"not compared: {clean_text(name)} ({why})", file=sys.stderr)
+    try:
+        reports = shared_code_reports(payloads, spec, args.compare_with, args.flag)
+    except ValueError as err:  # the spec's student notebook is gone
+        parser.exit(2, f"{parser.prog}: cannot compare: {err}\n")
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+        keep_previous(args.out, REPORTS)
+        for name, text in reports.items():
+            atomic_write(args.out / name, text)
+    except OSError as err:
+        parser.exit(
+            2, f"{parser.prog}: cannot write {args.out} ({err.strerror or err}): give --out a folder you can write to\n"
+        )
+    pairs = len(reports["similarity.csv"].splitlines()) - 1
+    print(
+        f"{sum(1 for _, data, _ in payloads if data)} submissions compared; pairs where one has at least "
+        f"{100 * args.flag:g} % of its own code in the other: {pairs}; see {args.out / 'similarity.html'}"
+    )
+
+
+if __name__ == "__main__":
+    keep_private()
+    main()
