@@ -176,8 +176,9 @@ def similarity_html(
         f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>Shared code: {e(problem)}</title>'
         f'<meta name="viewport" content="width=device-width, initial-scale=1"><style>{_STYLE}</style></head>'
         f"<body><main><h1>Shared code: {e(problem)}</h1><p>Submissions compared: {compared}, with each other "
-        f"and with {references} reference notebooks (the master's solution where there is one, and any earlier "
-        "notebooks given with --compare-with). Listed: the pairs where either notebook has at least "
+        f"and with {references} reference notebook{'' if references == 1 else 's'} (the master's solution "
+        "where there is one, and any earlier notebooks given with --compare-with). Listed: the pairs where "
+        "either notebook has at least "
         f"{100 * flag:g} % of its own code (what it adds to the notebook as handed out) in the other. Shared "
         "passages are <mark>marked</mark>; names and comments do not matter. In a trial on Problem 1, "
         "independently written right answers shared 7 to 37 % of their own code, and copies 100 %: read the "
