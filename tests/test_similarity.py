@@ -231,6 +231,7 @@ def test_the_compare_command_writes_the_batchs_report_and_leaves_the_grades(tmp_
         (["--flag", "nan"], "--flag: must be a share above 0 and at most 1"),
         (["--problem", "problem7"], "problem7.json: the problems are problem1, problem2"),
         (["SUBS/a.ipynb"], "is not a folder: give the folder that holds the .ipynb files"),
+        (["SUBS/b.zip"], "is a zip file: unzip it (a Canvas zip too) and give the folder"),
         (["--compare-with", "SUBS"], "is the submissions folder"),
     ],
 )
@@ -238,9 +239,10 @@ def test_the_compare_command_says_what_is_wrong_and_writes_nothing(tmp_path, cap
     subs = tmp_path / "subs"
     subs.mkdir()
     (subs / "a.ipynb").write_bytes(BLANK)
+    (subs / "b.zip").write_bytes(b"PK")
     args = [a.replace("SUBS", str(subs)) for a in args]
-    folder = [a for a in args if a.endswith(".ipynb")] or [str(subs)]
-    options = [a for a in args if not a.endswith(".ipynb")]
+    folder = [a for a in args if a.endswith((".ipynb", ".zip"))] or [str(subs)]
+    options = [a for a in args if not a.endswith((".ipynb", ".zip"))]
     problem = [] if "--problem" in options else ["--problem", "problem1"]
     with pytest.raises(SystemExit) as stop:
         compare.main([*problem, *options, *folder, "--out", str(tmp_path / "out")])

@@ -76,7 +76,9 @@ def main(argv=None) -> None:
         spec = load_spec(chosen_spec(parser, args))
     except ValueError as err:  # not JSON, or not a spec of known checks
         parser.error(str(err))
-    if not args.submissions.is_dir() and args.submissions.suffix != ".zip":
+    if args.submissions.is_file() and args.submissions.suffix.lower() == ".zip":
+        parser.error(f"{args.submissions} is a zip file: unzip it (a Canvas zip too) and give the folder")
+    if not args.submissions.is_dir():
         parser.error(f"{args.submissions} is not a folder: give the folder that holds the .ipynb files")
     check_submissions_folder(parser, args.submissions)
     check_compare_with(parser, args.compare_with, args.submissions)
