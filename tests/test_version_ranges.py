@@ -12,6 +12,7 @@ from pathlib import Path
 
 import tomllib
 import yaml
+from test_fresh_venv import COLAB_PYTHON
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -62,9 +63,12 @@ def test_every_push_runs_the_readme_test_command():
     """CI's entry point on every push and pull request, in a container where bubblewrap can run."""
     workflow = yaml.safe_load((ROOT / ".github" / "workflows" / "tests.yml").read_text(encoding="utf-8"))
     assert {"push", "pull_request"} <= set(workflow[True])
-    (job,) = workflow["jobs"].values()
+    job, colab = workflow["jobs"]["test"], workflow["jobs"]["colab-python"]
     assert [s["run"] for s in job["steps"] if s.get("run", "").startswith("bash")] == ["bash .ci/run"]
-    assert job["container"]["options"] == "--privileged"
+    assert job["container"]["options"] == colab["container"]["options"] == "--privileged"
+    # the unit and notebook tests again on the Python Colab runs, which tests/test_fresh_venv.py names
+    assert colab["container"]["image"] == f"python:{COLAB_PYTHON}-bookworm"
+    assert [s["run"] for s in colab["steps"] if "run" in s] == [f"PYTHON=python{COLAB_PYTHON} bash .ci/test-unit"]
     run = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     assert "bash .ci/test" in run and "bash .ci/test " in readme
