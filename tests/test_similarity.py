@@ -73,6 +73,52 @@ def test_a_copy_of_another_student_is_named_both_ways_round():
     assert pairs["a.ipynb", "b.ipynb"]["file's own code in other [%]"] == "100"
 
 
+#: Three kinds of unrelated code, one per padding: copydetect replaces names, so two paddings of
+#: one kind would share their code.
+PADDINGS = (
+    "def helper_{i}(values, scale={i}):\n    total = 0\n    for v in values:\n"
+    "        total = total * v - scale % {j}\n    return [total, len(values), '{i}']\n",
+    "class Thing{i}:\n    def __init__(self, a, b):\n        self.a, self.b = a, b * {i}\n"
+    "    def go(self):\n        return sorted([self.a, self.b, {i}])\n",
+    "table_{i} = {{k: str(k) * {j} for k in range({i})}}\nif len(table_{i}) > {j}:\n"
+    "    print('large', table_{i}.keys(), sep=';')\nelse:\n    del table_{i}\n",
+)
+
+
+def padded(notebook: bytes, kind: int) -> bytes:
+    """``notebook`` with a cell of 40 blocks of unrelated code, of the given ``kind`` (0, 1 or 2),
+    appended: about four times the code of a whole answer."""
+    nb = nbformat.reads(notebook.decode(), as_version=4)
+    nb.cells.append(nbformat.v4.new_code_cell("\n".join(PADDINGS[kind].format(i=i, j=i + 2) for i in range(40))))
+    return nbformat.writes(nb).encode()
+
+
+@pytest.mark.parametrize("spec", [SPEC1, SPEC2], ids=["problem1", "problem2"])
+def test_code_added_around_a_shared_answer_does_not_hide_it(spec):
+    unusual = UNUSUAL if spec is SPEC1 else UNUSUAL2
+    copy = disguised_copy(spec)
+    notebooks = {"a.ipynb": padded(copy, 0), "b.ipynb": padded(copy, 1), "honest.ipynb": padded(unusual, 2)}
+    pairs = _pairs(similarity.similarity_reports(notebooks, spec))
+    assert set(pairs) == {("a.ipynb", "b.ipynb"), ("a.ipynb", similarity.MASTER), ("b.ipynb", similarity.MASTER)}
+    row = pairs["a.ipynb", "b.ipynb"]
+    # Each has under a quarter of its own code in the other: the shares alone would not list them.
+    assert float(row["file's own code in other [%]"]) < 25 and float(row["other's own code in file [%]"]) < 25
+    assert float(row["shared, of a whole answer [%]"]) >= 90
+    assert "of a whole answer" in similarity.similarity_reports(notebooks, spec)["similarity.html"]
+
+
+def test_without_the_master_a_whole_answer_is_the_median_submissions():
+    handed_out, _ = similarity.handed_out_and_master(SPEC1)
+    copy = similarity.own_code(disguised_copy(SPEC1), handed_out)
+    codes = {"a": similarity.own_code(padded(disguised_copy(SPEC1), 0), handed_out)}
+    codes["b"] = similarity.own_code(padded(disguised_copy(SPEC1), 1), handed_out)
+    codes |= {f"right{i}": copy for i in range(3)}  # three more of the answer's size: the median is one
+    pairs = similarity.similar_pairs(codes, "\n\n".join(sorted(handed_out)))
+    ab = next(p for p in pairs if (p.a, p.b) == ("a", "b"))
+    assert max(ab.share_a, ab.share_b) < 0.25 and ab.share_answer == pytest.approx(1.0, abs=0.1)
+    assert similarity.similar_pairs({"a": codes["a"]}, "") == []  # nobody to compare with
+
+
 def test_a_lower_flag_lists_more_and_every_pair_listed_shares_code():
     handed_out, master = similarity.handed_out_and_master(SPEC1)
     codes = {"copier": similarity.own_code(disguised_copy(SPEC1), handed_out)}
@@ -206,7 +252,8 @@ def test_the_compare_command_writes_the_batchs_report_and_leaves_the_grades(tmp_
     capsys.readouterr()
     compare.main(["--problem", "problem1", str(subs), "--out", str(out)])
     captured = capsys.readouterr()
-    assert "2 submissions compared; pairs where one has at least 60 % of its own code in the other: 1;" in captured.out
+    said = "2 submissions compared; pairs sharing at least 60 % of one's own code or of a whole answer: 1;"
+    assert said in captured.out
     assert "not compared: empty.ipynb (the file is empty" in captured.err
     now = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
     for name in compare.REPORTS:

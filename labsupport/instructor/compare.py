@@ -67,8 +67,8 @@ def main(argv=None) -> None:
         "--flag",
         type=flag_argument,
         default=FLAG_SHARE,
-        help=f"list a pair when either notebook has at least this share of its own code in the other "
-        f"(default {FLAG_SHARE}, as the batch grader)",
+        help=f"list a pair when either notebook has at least this share of its own code in the other, or the "
+        f"two share this share of a whole answer (default {FLAG_SHARE}, as the batch grader)",
     )
     compare_with_argument(parser)
     args = parser.parse_args(argv)
@@ -104,8 +104,8 @@ def main(argv=None) -> None:
         )
     pairs = len(reports["similarity.csv"].splitlines()) - 1
     print(
-        f"{sum(1 for _, data, _ in payloads if data)} submissions compared; pairs where one has at least "
-        f"{100 * args.flag:g} % of its own code in the other: {pairs}; see {args.out / 'similarity.html'}"
+        f"{sum(1 for _, data, _ in payloads if data)} submissions compared; pairs sharing at least "
+        f"{100 * args.flag:g} % of one's own code or of a whole answer: {pairs}; see {args.out / 'similarity.html'}"
     )
 
 

@@ -5,9 +5,10 @@ The batch grader (:mod:`labsupport.instructor.batch`, and so the Canvas command 
 two files beside ``grades.csv``:
 
 * ``similarity.csv``: one row per pair of notebooks where either has at least
-  :data:`FLAG_SHARE` of its own code in the other, most shared first: the two files (one may be
-  the master's solution), the share of each one's own code found in the other, and how many
-  characters of (tokenised) code they share;
+  :data:`FLAG_SHARE` of its own code in the other, or where the code they share is as much as
+  :data:`FLAG_SHARE` of a whole answer, most shared first: the two files (one may be the
+  master's solution), the share of each one's own code found in the other, how many tokens of
+  code they share, and that amount as a share of a whole answer;
 * ``similarity.html``: the same pairs side by side, the shared passages marked, for reading in
   a browser (one self-contained page).
 
@@ -28,7 +29,11 @@ tokens do not count (a one-line PD law is the same in every right answer).
 
 Measured on Problem 1: independently written right answers share 7 to 37 % of their own code
 (its laws are short, its IK a textbook formula); a copy shares 100 %, even with its variables
-renamed and its comments dropped. Read the marked passages before concluding anything. The
+renamed and its comments dropped. Padding does not hide a copy either: two students who hand in
+one answer, each with pages of unrelated code added, share only a small part of their own code,
+but as much code as a whole answer, and that lists them. A whole answer is the master's own
+code, or, where the checkout lacks the master, the median submission's. Read the marked
+passages before concluding anything. The
 master's solution is compared too where the checkout holds it (``spec["master"]``): the
 masters are in the course repository, so a public repository shows them to anyone who looks.
 """
@@ -39,6 +44,7 @@ import csv
 import html
 import io
 import itertools
+import statistics
 from dataclasses import dataclass
 
 try:
@@ -67,16 +73,24 @@ MAX_CODE_CHARS = 200_000
 @dataclass(frozen=True)
 class Pair:
     """Two notebooks that share code: ``share_a`` of ``a``'s own code is in ``b``, and
-    ``share_b`` of ``b``'s in ``a``; ``shared`` counts the shared characters of tokenised code;
-    ``marked_a`` and ``marked_b`` are each one's code as HTML, shared passages in ``<mark>``."""
+    ``share_b`` of ``b``'s in ``a``; ``shared`` counts the shared tokens of code, which are
+    ``share_answer`` of a whole answer's; ``marked_a`` and ``marked_b`` are each one's code as
+    HTML, shared passages in ``<mark>``."""
 
     a: str
     b: str
     share_a: float
     share_b: float
     shared: int
+    share_answer: float
     marked_a: str
     marked_b: str
+
+    @property
+    def rank(self) -> float:
+        """What lists the pair, and orders the list: the largest of its three shares, a share of
+        more than a whole answer (two copies holding the same extra code) counting as a whole."""
+        return max(self.share_a, self.share_b, min(self.share_answer, 1.0))
 
 
 def own_code(data: bytes, handed_out: frozenset[str] = frozenset()) -> str:
@@ -91,36 +105,57 @@ def _fingerprint(name: str, code: str, boilerplate) -> CodeFingerprint:
     return CodeFingerprint(name, NOISE_THRESHOLD, 1, boilerplate, filter=True, language="python", fp=io.StringIO(code))
 
 
+def answer_tokens(prints: dict[str, CodeFingerprint], codes: dict[str, str]) -> int:
+    """How many tokens of own code a whole answer has: the master's (``MASTER`` in ``prints``),
+    else the median of the submissions' (``codes``) that have any; at least 1."""
+    if MASTER in prints:
+        return max(1, int(prints[MASTER].token_coverage))
+    sizes = [prints[name].token_coverage for name in codes if prints[name].token_coverage]
+    return max(1, int(statistics.median(sizes))) if sizes else 1
+
+
 def similar_pairs(
     codes: dict[str, str], handed_out: str, references: dict[str, str] | None = None, flag: float = FLAG_SHARE
 ) -> list[Pair]:
     """Every pair of ``codes`` (name -> own code), and each of them with each of ``references``
     (the master's solution, earlier years' notebooks: compared with the submissions, not with
-    each other), where either has at least ``flag`` of its own code in the other; most shared
-    first, a reference always second. Code found in ``handed_out`` (the student notebook's) is
-    nobody's own."""
+    each other), where either has at least ``flag`` of its own code in the other, or where they
+    share at least ``flag`` of a whole answer (:func:`answer_tokens`), which padding cannot hide;
+    most shared first, a reference always second. Code found in ``handed_out`` (the student
+    notebook's) is nobody's own."""
     references = references or {}
     boilerplate = sorted(_fingerprint("handed_out", handed_out, None).hashes)
     everyone = {**references, **codes}
     prints = {name: _fingerprint(name, code, boilerplate) for name, code in everyone.items()}
+    answer = answer_tokens(prints, codes)
     pairs = []
     for a, b in [*itertools.combinations(codes, 2), *itertools.product(codes, references)]:
         shared, (share_a, share_b), (slices_a, slices_b) = compare_files(prints[a], prints[b])
-        if not shared or max(share_a, share_b) < flag:
+        if not shared or max(share_a, share_b, shared / answer) < flag:
             continue
         marked_a, _ = highlight_overlap(everyone[a], slices_a, "<mark>", "</mark>", escape_html=True)
         marked_b, _ = highlight_overlap(everyone[b], slices_b, "<mark>", "</mark>", escape_html=True)
-        pairs.append(Pair(a, b, float(share_a), float(share_b), int(shared), marked_a, marked_b))
-    return sorted(pairs, key=lambda p: (-max(p.share_a, p.share_b), p.a, p.b))
+        pairs.append(Pair(a, b, float(share_a), float(share_b), int(shared), shared / answer, marked_a, marked_b))
+    return sorted(pairs, key=lambda p: (-p.rank, p.a, p.b))
 
 
 def similarity_csv(pairs: list[Pair]) -> str:
     """The text of ``similarity.csv``: a row per pair, shares in percent."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(["file", "other", "file's own code in other [%]", "other's own code in file [%]", "shared"])
+    writer.writerow(
+        [
+            "file",
+            "other",
+            "file's own code in other [%]",
+            "other's own code in file [%]",
+            "shared [tokens]",
+            "shared, of a whole answer [%]",
+        ]
+    )
     for p in pairs:
-        writer.writerow([csv_cell(p.a), csv_cell(p.b), f"{100 * p.share_a:.0f}", f"{100 * p.share_b:.0f}", p.shared])
+        shares = (f"{100 * share:.0f}" for share in (p.share_a, p.share_b))
+        writer.writerow([csv_cell(p.a), csv_cell(p.b), *shares, p.shared, f"{100 * p.share_answer:.0f}"])
     return buf.getvalue()
 
 
@@ -157,13 +192,14 @@ def similarity_html(
     )
     rows = "".join(
         f'<tr><td><a href="#pair-{i}">{e(p.a)}</a></td><td>{e(p.b)}</td>'
-        f"<td>{100 * p.share_a:.0f} %</td><td>{100 * p.share_b:.0f} %</td></tr>"
+        f"<td>{100 * p.share_a:.0f} %</td><td>{100 * p.share_b:.0f} %</td><td>{100 * p.share_answer:.0f} %</td></tr>"
         for i, p in enumerate(pairs, 1)
     )
     table = (
         "<table><caption>Pairs, most shared first</caption><tr><th scope='col'>file</th>"
         "<th scope='col'>other</th><th scope='col'>its own code found in the other</th>"
-        f"<th scope='col'>the other's found in it</th></tr>{rows}</table>"
+        "<th scope='col'>the other's found in it</th><th scope='col'>shared code, of a whole answer</th></tr>"
+        f"{rows}</table>"
         if pairs
         else "<p>No pair reaches that share.</p>"
     )
@@ -179,7 +215,9 @@ def similarity_html(
         f"and with {references} reference notebook{'' if references == 1 else 's'} (the master's solution "
         "where there is one, and any earlier notebooks given with --compare-with). Listed: the pairs where "
         "either notebook has at least "
-        f"{100 * flag:g} % of its own code (what it adds to the notebook as handed out) in the other. Shared "
+        f"{100 * flag:g} % of its own code (what it adds to the notebook as handed out) in the other, or where "
+        f"the two share as much code as {100 * flag:g} % of a whole answer (the master's own code, else the median "
+        "submission's), so that code added around a copy does not hide it. Shared "
         "passages are <mark>marked</mark>; names and comments do not matter. In a trial on Problem 1, "
         "independently written right answers shared 7 to 37 % of their own code, and copies 100 %: read the "
         "marked passages before concluding anything.</p>"
