@@ -11,13 +11,14 @@ import re
 import shutil
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import nbformat
 import pytest
 from hostile.build import unusual_problem2
 
-from labsupport.instructor import batch, compare, similarity
+from labsupport.instructor import batch, canvas, compare, similarity
 from labsupport.instructor.assign import load_spec
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -48,6 +49,14 @@ def disguised_copy(spec: dict) -> bytes:
             code = re.sub(rf"\b{old}\b", new, code)
         cell.source = code
     return nbformat.writes(student).encode()
+
+
+def canvas_zip(path: Path, members: dict[str, bytes]) -> Path:
+    """A zip holding ``members`` (entry name -> bytes), as Canvas's "Download Submissions" zips."""
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, data in members.items():
+            zf.writestr(name, data)
+    return path
 
 
 def _pairs(reports: dict[str, str]) -> dict[tuple[str, str], dict]:
@@ -198,13 +207,25 @@ def test_earlier_notebooks_are_compared_with_the_submissions_not_graded_and_not_
 
 @pytest.mark.parametrize(
     "where, words",
-    [("missing", "no such folder"), ("empty", "no .ipynb file"), ("subs", "is the submissions folder")],
+    [
+        ("missing", "no such folder or zip"),
+        ("empty", "no .ipynb file"),
+        ("subs", "is the submissions themselves"),
+        ("empty.zip", "the zip holds no .ipynb file"),
+        ("broken.zip", "is not a readable zip"),
+        ("notes.txt", "neither a folder nor a .zip file"),
+        ("slip.zip", "points outside the folder"),
+    ],
 )
 def test_a_compare_with_folder_that_cannot_serve_is_refused_before_grading(tmp_path, capsys, where, words):
     subs = tmp_path / "subs"
     subs.mkdir()
     (subs / "a.ipynb").write_bytes(BLANK)
     (tmp_path / "empty").mkdir()
+    canvas_zip(tmp_path / "empty.zip", {"__MACOSX/._smithbob_11_12_problem1_reaching.ipynb": b"", "notes.txt": b"x"})
+    (tmp_path / "broken.zip").write_bytes(b"PK\x03\x04 not a zip")
+    (tmp_path / "notes.txt").write_text("last year's notes")
+    canvas_zip(tmp_path / "slip.zip", {"../smithbob_11_12_problem1_reaching.ipynb": BLANK})
     out = tmp_path / "out"
     with pytest.raises(SystemExit) as stop:
         batch.main(
@@ -277,9 +298,10 @@ def test_the_compare_command_writes_the_batchs_report_and_leaves_the_grades(tmp_
         (["--flag", "60"], "--flag: must be a share above 0 and at most 1"),
         (["--flag", "nan"], "--flag: must be a share above 0 and at most 1"),
         (["--problem", "problem7"], "problem7.json: the problems are problem1, problem2"),
-        (["SUBS/a.ipynb"], "is not a folder: give the folder that holds the .ipynb files"),
-        (["SUBS/b.zip"], "is a zip file: unzip it (a Canvas zip too) and give the folder"),
-        (["--compare-with", "SUBS"], "is the submissions folder"),
+        (["SUBS/a.ipynb"], "is neither a folder nor a .zip: give the folder that holds the .ipynb files"),
+        (["SUBS/b.zip"], "is not a readable zip"),
+        (["SUBS/c.zip"], "no notebook for problem1 in"),
+        (["--compare-with", "SUBS"], "is the submissions themselves"),
     ],
 )
 def test_the_compare_command_says_what_is_wrong_and_writes_nothing(tmp_path, capsys, args, words):
@@ -287,6 +309,7 @@ def test_the_compare_command_says_what_is_wrong_and_writes_nothing(tmp_path, cap
     subs.mkdir()
     (subs / "a.ipynb").write_bytes(BLANK)
     (subs / "b.zip").write_bytes(b"PK")
+    canvas_zip(subs / "c.zip", {"smithbob_11_12_problem2_tracking.ipynb": BLANK})
     args = [a.replace("SUBS", str(subs)) for a in args]
     folder = [a for a in args if a.endswith((".ipynb", ".zip"))] or [str(subs)]
     options = [a for a in args if not a.endswith((".ipynb", ".zip"))]
@@ -307,8 +330,6 @@ def test_an_environment_without_copydetect_is_told_how_to_get_it():
 
 
 def test_the_canvas_command_takes_compare_with_to_the_batch(tmp_path, capsys, monkeypatch):
-    from labsupport.instructor import canvas
-
     fixtures = ROOT / "tests" / "fixtures" / "canvas"
     argv = ["--problem", "problem1", str(fixtures / "submissions.zip"), "--gradebook"]
     argv += [str(fixtures / "gradebook_export.csv"), "--out", str(tmp_path / "out"), "--compare-with"]
@@ -337,8 +358,79 @@ def test_a_huge_earlier_notebook_is_held_without_its_outputs(tmp_path, monkeypat
     earlier = tmp_path / "2025"
     earlier.mkdir()
     (earlier / "big.ipynb").write_bytes(nbformat.writes(nb).encode())
+    zipped = canvas_zip(tmp_path / "2024.zip", {"smithbob_101_5001_problem1_reaching.ipynb": nbformat.writes(nb)})
     monkeypatch.setattr(batch, "STRIP_OUTPUTS_BYTES", 40_000)
-    held = batch.earlier_notebooks([earlier])["2025/big.ipynb"]
-    assert len(held) < 40_000 and b"x" * 1000 not in held
-    pairs = _pairs(similarity.similarity_reports({"copier.ipynb": UNUSUAL}, SPEC1, {"2025/big.ipynb": held}))
-    assert set(pairs) == {("copier.ipynb", "2025/big.ipynb")}
+    monkeypatch.setattr(canvas, "STRIP_OUTPUTS_BYTES", 40_000)
+    held = batch.earlier_notebooks([earlier, zipped], SPEC1)
+    assert set(held) == {"2025/big.ipynb", "2024.zip/smithbob_101_5001_problem1_reaching.ipynb"}
+    for data in held.values():
+        assert len(data) < 40_000 and b"x" * 1000 not in data
+    pairs = _pairs(similarity.similarity_reports({"copier.ipynb": UNUSUAL}, SPEC1, held))
+    assert {other for _, other in pairs} == set(held)
+
+
+def test_the_compare_command_reads_a_canvas_zip_as_it_comes(tmp_path, capsys):
+    """Each student's notebook for the Problem, chosen as the Canvas command chooses it and named
+    as Canvas named it; the rest is named on stderr."""
+    copy = disguised_copy(SPEC1)
+    zpath = canvas_zip(
+        tmp_path / "submissions.zip",
+        {
+            "smithbob_101_5001_problem1_reaching.ipynb": copy,
+            "smithbob_101_5002_problem2_tracking.ipynb": copy,  # his other notebook
+            "garciaana_LATE_102_5003_problem1_reaching-1.ipynb": copy,  # Ana's re-upload, late
+            "leejo_103_5004_problem2_tracking.ipynb": UNUSUAL,  # the wrong Problem's notebook only
+            "anon_Xy12_5005_problem1_reaching.ipynb": UNUSUAL,  # anonymous grading
+            "__MACOSX/._smithbob_101_5001_problem1_reaching.ipynb": b"\0",
+            "kimmin_104_text.html": b"<p>see attachment</p>",
+        },
+    )
+    out = tmp_path / "out"
+    compare.main(["--problem", "problem1", str(zpath), "--out", str(out)])
+    captured = capsys.readouterr()
+    assert "3 submissions compared" in captured.out
+    assert "not compared: smithbob_101_5002_problem2_tracking.ipynb (the student's other notebook)" in captured.err
+    assert "not compared: leejo_103_5004_problem2_tracking.ipynb (problem2's notebook)" in captured.err
+    pairs = _pairs({"similarity.csv": (out / "similarity.csv").read_text(encoding="utf-8")})
+    bob, ana = "smithbob_101_5001_problem1_reaching.ipynb", "garciaana_LATE_102_5003_problem1_reaching-1.ipynb"
+    assert set(pairs) == {(ana, bob), (ana, similarity.MASTER), (bob, similarity.MASTER)}
+
+
+def test_last_years_canvas_zip_serves_as_compare_with(tmp_path, capsys):
+    subs = tmp_path / "subs"
+    subs.mkdir()
+    (subs / "copier.ipynb").write_bytes(UNUSUAL)
+    (subs / "own.ipynb").write_bytes(padded(BLANK, 2))
+    last_year = canvas_zip(
+        tmp_path / "2025.zip",
+        {"smithbob_101_5001_problem1_reaching.ipynb": UNUSUAL, "leejo_103_5004_problem1_reaching.ipynb": BLANK},
+    )
+    out = tmp_path / "out"
+    compare.main(["--problem", "problem1", str(subs), "--out", str(out), "--compare-with", str(last_year)])
+    pairs = _pairs({"similarity.csv": (out / "similarity.csv").read_text(encoding="utf-8")})
+    assert set(pairs) == {("copier.ipynb", "2025.zip/smithbob_101_5001_problem1_reaching.ipynb")}
+    assert "with 3 reference notebooks" in (out / "similarity.html").read_text(encoding="utf-8")
+    batch.main(
+        [
+            *_argv(subs, tmp_path / "graded", ROOT / "tests" / "autograder" / "problem1.json"),
+            "--compare-with",
+            str(last_year),
+        ]
+    )
+    assert (tmp_path / "graded" / "similarity.csv").read_text(encoding="utf-8") == (out / "similarity.csv").read_text(
+        encoding="utf-8"
+    )
+
+
+def test_the_canvas_command_takes_a_zip_as_compare_with_but_not_its_own(tmp_path, capsys, monkeypatch):
+    fixtures = ROOT / "tests" / "fixtures" / "canvas"
+    argv = ["--problem", "problem1", str(fixtures / "submissions.zip"), "--gradebook"]
+    argv += [str(fixtures / "gradebook_export.csv"), "--out", str(tmp_path / "out"), "--compare-with"]
+    with pytest.raises(SystemExit) as stop:
+        canvas.main([*argv, str(fixtures / "submissions.zip")])
+    assert stop.value.code == 2 and "is the submissions themselves" in capsys.readouterr().err
+    last_year = canvas_zip(tmp_path / "2025.zip", {"smithbob_101_5001_problem1_reaching.ipynb": UNUSUAL})
+    seen = {}
+    monkeypatch.setattr(batch, "run_batch", lambda folder, spec_path, out, **options: seen.update(options) or [])
+    canvas.main([*argv, str(last_year)])
+    assert seen["compare_with"] == [last_year]

@@ -74,11 +74,15 @@ from labsupport.instructor.canvas import (
     STRIP_OUTPUTS_BYTES,
     clean_text,
     csv_cell,
+    is_os_metadata,
     keep_previous,
     keep_private,
+    open_zip,
     remove_stale_feedback,
+    safe_zip_entries,
     seed_argument,
     without_outputs,
+    zip_notebooks,
 )
 from labsupport.instructor.rubric import canvas_rubric_csv, rubric
 
@@ -286,9 +290,10 @@ def shared_code_reports(
 ) -> dict[str, str]:
     """``similarity.csv`` and ``similarity.html`` (by file name) for the submissions read by
     :func:`read_submissions`, compared with each other, with the master's solution and with the
-    notebooks of the ``compare_with`` folders (:func:`labsupport.instructor.similarity.similarity_reports`)."""
+    notebooks of the ``compare_with`` folders and zips
+    (:func:`labsupport.instructor.similarity.similarity_reports`)."""
     submitted = {name: data for name, data, _ in payloads if data}
-    return similarity.similarity_reports(submitted, spec, earlier_notebooks(compare_with), flag)
+    return similarity.similarity_reports(submitted, spec, earlier_notebooks(compare_with, spec), flag)
 
 
 def read_notebook(path: Path) -> bytes:
@@ -299,18 +304,28 @@ def read_notebook(path: Path) -> bytes:
     return without_outputs(data) if len(data) > STRIP_OUTPUTS_BYTES else data
 
 
-def earlier_notebooks(folders: list[Path]) -> dict[str, bytes]:
-    """The notebooks at the top of each of ``folders``, by ``<folder name>/<file name>`` (the
-    folder as given where two share a name), for the shared-code report; one that cannot be read
-    is named on stderr and left out."""
+def earlier_notebooks(folders: list[Path], spec: dict) -> dict[str, bytes]:
+    """The notebooks at the top of each of ``folders``, or in each zip among them (a Canvas
+    download: each student's notebook for the Problem of ``spec``,
+    :func:`labsupport.instructor.canvas.zip_notebooks`), by ``<folder or zip name>/<file name>``
+    (the path as given where two share a name), for the shared-code report; one that cannot be
+    read is named on stderr and left out."""
     notebooks = {}
     for folder in folders:
-        for path in list_notebooks(folder):
-            name = f"{folder.name}/{path.name}"
-            try:
-                notebooks[f"{folder}/{path.name}" if name in notebooks else name] = read_notebook(path)
-            except OSError as err:
-                print(f"not compared: {clean_text(str(path))} ({err.strerror})", file=sys.stderr)
+        if folder.is_file():
+            found, left_out = zip_notebooks(folder, spec)
+            for entry in left_out:
+                print(f"not compared: {clean_text(f'{folder}/{entry}')}", file=sys.stderr)
+        else:
+            found, left_out = {}, []
+            for path in list_notebooks(folder):
+                try:
+                    found[path.name] = read_notebook(path)
+                except OSError as err:
+                    print(f"not compared: {clean_text(str(path))} ({err.strerror})", file=sys.stderr)
+        for entry, data in found.items():
+            name = f"{folder.name}/{entry}"
+            notebooks[f"{folder}/{entry}" if name in notebooks else name] = data
     return notebooks
 
 
@@ -423,28 +438,39 @@ def check_submissions_folder(parser: argparse.ArgumentParser, folder: Path) -> N
 
 
 def compare_with_argument(parser: argparse.ArgumentParser) -> None:
-    """``--compare-with FOLDER``, repeatable: earlier notebooks for the shared-code report."""
+    """``--compare-with FOLDER_OR_ZIP``, repeatable: earlier notebooks for the shared-code report."""
     parser.add_argument(
         "--compare-with",
         type=Path,
         action="append",
         default=[],
-        metavar="FOLDER",
-        help="a folder of earlier notebooks (last year's, say) to compare the submissions with in "
-        "similarity.html; they are not graded (repeat for several folders)",
+        metavar="FOLDER_OR_ZIP",
+        help="a folder of earlier notebooks, or a zip of them such as last year's Canvas 'Download "
+        "Submissions' zip, to compare the submissions with in similarity.html; they are not graded "
+        "(repeat for several)",
     )
 
 
 def check_compare_with(parser: argparse.ArgumentParser, folders: list[Path], submissions: Path | None) -> None:
-    """Stop with what to do when a ``--compare-with`` folder is missing, holds no notebook, or is
-    the submissions folder itself (whose notebooks are compared with each other already)."""
+    """Stop with what to do when a ``--compare-with`` folder or zip is missing, holds no notebook,
+    cannot be read, or is the submissions themselves (whose notebooks are compared with each other
+    already)."""
     for folder in folders:
-        if not folder.is_dir():
-            parser.error(f"--compare-with {folder}: no such folder")
-        if not any(is_notebook(p) for p in folder.iterdir()):
+        if folder.is_file() and folder.suffix.lower() == ".zip":
+            try:
+                with open_zip(folder) as zf:
+                    entries = [i.filename for i in safe_zip_entries(zf) if not is_os_metadata(i.filename)]
+            except ValueError as err:
+                parser.error(f"--compare-with {folder}: {err}")
+            if not any(entry.lower().endswith(".ipynb") for entry in entries):
+                parser.error(f"--compare-with {folder}: the zip holds no .ipynb file")
+        elif not folder.is_dir():
+            why = "neither a folder nor a .zip file" if folder.exists() else "no such folder or zip"
+            parser.error(f"--compare-with {folder}: {why}")
+        elif not any(is_notebook(p) for p in folder.iterdir()):
             parser.error(f"--compare-with {folder}: no .ipynb file at its top level")
         if submissions is not None and folder.resolve() == submissions.resolve():
-            parser.error(f"--compare-with {folder} is the submissions folder: its notebooks are compared already")
+            parser.error(f"--compare-with {folder} is the submissions themselves: their notebooks are compared already")
 
 
 def main(argv=None) -> None:

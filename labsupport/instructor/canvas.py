@@ -738,17 +738,65 @@ def _run_batch(jobs: int | None, seed: int | None = None, compare_with: list[Pat
     return grade
 
 
-def _select_submissions(
-    zip_path: Path, gradebook: Gradebook, spec: dict, result: CanvasResult
-) -> dict[int, SubmissionFile]:
-    """For each student of the gradebook with a notebook in the zip, the one file to grade."""
+def open_zip(zip_path: Path) -> zipfile.ZipFile:
+    """The zip at ``zip_path``, open; ``ValueError`` saying what to do when it cannot be read."""
     try:
-        zf = zipfile.ZipFile(zip_path)
+        return zipfile.ZipFile(zip_path)
     except (zipfile.BadZipFile, OSError) as err:
         raise ValueError(
             f"{zip_path} is not a readable zip ({err}): download the submissions from Canvas again"
         ) from None
-    with zf:
+
+
+def zip_notebooks(zip_path: Path, spec: dict) -> tuple[dict[str, bytes], list[str]]:
+    """The notebooks of a zip to compare for shared code, by entry name, and what was left out, why.
+
+    From a Canvas "Download Submissions" zip, each student's one notebook for the Problem of
+    ``spec``, chosen as for grading (:func:`choose_notebook`); an entry not named as Canvas names
+    uploads (a zip of notebooks made by hand) is a notebook of its own. ``ValueError`` for a zip
+    that cannot be read or is refused (:func:`safe_zip_entries`).
+    """
+    notebooks, left_out = {}, []
+    with open_zip(zip_path) as zf:
+        entries = [info for info in safe_zip_entries(zf) if not is_os_metadata(info.filename)]
+        by_student: dict[int | str, list[SubmissionFile]] = {}
+        chosen = []
+        for info in entries:
+            f = parse_submission_name(info.filename)
+            if f is None:
+                if info.filename.lower().endswith(".ipynb"):
+                    chosen.append(info.filename)
+            else:
+                by_student.setdefault(f.user_id or f.anonymous_id, []).append(f)
+        for files in by_student.values():
+            pick = choose_notebook(files, notebook_stem(spec), spec["problem"])
+            other = pick and _other_problem(pick.base_name, spec["problem"])
+            left_out += [
+                f"{f.entry} ({other}'s notebook)" if f is pick else f"{f.entry} (the student's other notebook)"
+                for f in files
+                if f.is_notebook and (f is not pick or other)
+            ]
+            if pick and not other:
+                chosen.append(pick.entry)
+        infos = {info.filename: info for info in entries}
+        for entry in sorted(chosen):
+            try:
+                data = read_member(zf, infos[entry])
+            except (zipfile.BadZipFile, zlib.error, EOFError) as err:
+                left_out.append(f"{entry} (damaged in the zip: {err})")
+                continue
+            if data is None:
+                left_out.append(f"{entry} (larger than {MAX_NOTEBOOK_BYTES:,} bytes)")
+            else:
+                notebooks[entry] = without_outputs(data) if len(data) > STRIP_OUTPUTS_BYTES else data
+    return notebooks, left_out
+
+
+def _select_submissions(
+    zip_path: Path, gradebook: Gradebook, spec: dict, result: CanvasResult
+) -> dict[int, SubmissionFile]:
+    """For each student of the gradebook with a notebook in the zip, the one file to grade."""
+    with open_zip(zip_path) as zf:
         entries = safe_zip_entries(zf)
     by_user: dict[int, list[SubmissionFile]] = {}
     kept = [info for info in entries if not is_os_metadata(info.filename)]
@@ -1028,7 +1076,7 @@ def main(argv=None) -> None:
 
     compare_with_argument(parser)
     args = parser.parse_args(argv)
-    check_compare_with(parser, args.compare_with, None)
+    check_compare_with(parser, args.compare_with, Path(args.submissions))
     spec = chosen_spec(parser, args)
     if args.jobs is not None and args.jobs < 1:
         parser.error(f"--jobs must be at least 1, got {args.jobs}")

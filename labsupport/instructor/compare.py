@@ -1,4 +1,4 @@
-"""Compare a folder of submissions for shared code, without grading them.
+"""Compare a folder or a zip of submissions for shared code, without grading them.
 
 Usage (from the repository root)::
 
@@ -7,9 +7,11 @@ Usage (from the repository root)::
 writes ``REPORTS/similarity.csv`` and ``REPORTS/similarity.html``: the report the batch grader
 writes beside ``grades.csv`` (:mod:`labsupport.instructor.similarity`), made the same way from
 the same notebooks, compared with each other, with the master's solution and with the notebooks
-of any ``--compare-with FOLDER``. It runs no student code, so it needs no sandbox and takes
-seconds where grading takes minutes. Use it to compare with another year's folder once the
-grades are in, or to list the pairs at a lower ``--flag`` (0.4, say) than the batch's
+of any ``--compare-with FOLDER_OR_ZIP``. SUBMISSIONS may be Canvas's "Download Submissions" zip
+as it comes: each student's notebook for the Problem is compared, named as Canvas named it. It
+runs no student code, so it needs no sandbox and takes seconds where grading takes minutes. Use
+it to compare with another year's submissions once the grades are in, or to list the pairs at a
+lower ``--flag`` (0.4, say) than the batch's
 :data:`~labsupport.instructor.similarity.FLAG_SHARE`. Given the batch's output folder, it moves
 the batch's report into ``previous/`` and leaves the grades as they are.
 """
@@ -22,6 +24,7 @@ from pathlib import Path
 
 from labsupport.instructor.assign import chosen_spec, load_spec, problem_arguments
 from labsupport.instructor.batch import (
+    EMPTY_FILE,
     atomic_write,
     check_compare_with,
     check_submissions_folder,
@@ -31,7 +34,7 @@ from labsupport.instructor.batch import (
     read_submissions,
     shared_code_reports,
 )
-from labsupport.instructor.canvas import clean_text, keep_previous, keep_private
+from labsupport.instructor.canvas import clean_text, keep_previous, keep_private, zip_notebooks
 from labsupport.instructor.similarity import FLAG_SHARE
 
 #: The files this command writes (and moves into ``previous/`` when an earlier run left them).
@@ -49,13 +52,48 @@ def flag_argument(text: str) -> float:
     return flag
 
 
+def folder_submissions(parser: argparse.ArgumentParser, folder: Path) -> list[tuple[str, bytes | None, str | None]]:
+    """The notebooks at the top of ``folder`` (:func:`labsupport.instructor.batch.read_submissions`);
+    what is left aside, and why, goes to stderr."""
+    check_submissions_folder(parser, folder)
+    aside = left_aside(folder)
+    if aside:
+        print("not compared (not .ipynb files): " + clean_text(", ".join(aside)), file=sys.stderr)
+    payloads = read_submissions(list_notebooks(folder))
+    for name, _, why in payloads:
+        if why:
+            print(f"not compared: {clean_text(name)} ({why})", file=sys.stderr)
+    return payloads
+
+
+def zip_submissions(
+    parser: argparse.ArgumentParser, zip_path: Path, spec: dict
+) -> list[tuple[str, bytes | None, str | None]]:
+    """The notebooks of a zip as :func:`folder_submissions` gives a folder's: of a Canvas download,
+    each student's notebook for the Problem (:func:`labsupport.instructor.canvas.zip_notebooks`);
+    what is left out, and why, goes to stderr."""
+    try:
+        notebooks, left_out = zip_notebooks(zip_path, spec)
+    except ValueError as err:
+        parser.error(str(err))
+    for entry in left_out:
+        print(f"not compared: {clean_text(entry)}", file=sys.stderr)
+    if not notebooks:
+        parser.error(f"no notebook for {spec['problem']} in {zip_path}")
+    return [(name, data, None) if data else (name, None, EMPTY_FILE) for name, data in notebooks.items()]
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(
         prog="python -m labsupport.instructor.compare",
         description="List the pairs of submissions that share code (similarity.csv, similarity.html), without "
         "grading them.",
     )
-    parser.add_argument("submissions", type=Path, help="folder holding the students' .ipynb files")
+    parser.add_argument(
+        "submissions",
+        type=Path,
+        help="folder holding the students' .ipynb files, or Canvas's 'Download Submissions' zip as it comes",
+    )
     problem_arguments(parser)
     parser.add_argument(
         "--out",
@@ -76,19 +114,13 @@ def main(argv=None) -> None:
         spec = load_spec(chosen_spec(parser, args))
     except ValueError as err:  # not JSON, or not a spec of known checks
         parser.error(str(err))
-    if args.submissions.is_file() and args.submissions.suffix.lower() == ".zip":
-        parser.error(f"{args.submissions} is a zip file: unzip it (a Canvas zip too) and give the folder")
-    if not args.submissions.is_dir():
-        parser.error(f"{args.submissions} is not a folder: give the folder that holds the .ipynb files")
-    check_submissions_folder(parser, args.submissions)
     check_compare_with(parser, args.compare_with, args.submissions)
-    aside = left_aside(args.submissions)
-    if aside:
-        print("not compared (not .ipynb files): " + clean_text(", ".join(aside)), file=sys.stderr)
-    payloads = read_submissions(list_notebooks(args.submissions))
-    for name, _, why in payloads:
-        if why:
-            print(f"not compared: {clean_text(name)} ({why})", file=sys.stderr)
+    if args.submissions.is_file() and args.submissions.suffix.lower() == ".zip":
+        payloads = zip_submissions(parser, args.submissions, spec)
+    elif args.submissions.is_dir():
+        payloads = folder_submissions(parser, args.submissions)
+    else:
+        parser.error(f"{args.submissions} is neither a folder nor a .zip: give the folder that holds the .ipynb files")
     try:
         reports = shared_code_reports(payloads, spec, args.compare_with, args.flag)
     except ValueError as err:  # the spec's student notebook is gone

@@ -16,7 +16,7 @@ two files beside ``grades.csv``:
 report for a folder without grading it.
 
 Each submission is compared with the others, with the master's solution and with the notebooks
-of any ``--compare-with FOLDER`` (earlier years' submissions, say: references, not graded and
+of any ``--compare-with FOLDER_OR_ZIP`` (earlier years' submissions, say: references, not graded and
 not compared with each other).
 
 A notebook's own code is the source of its code cells (outputs are never read), less the cells
