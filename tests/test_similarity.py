@@ -329,23 +329,23 @@ def test_an_environment_without_copydetect_is_told_how_to_get_it():
     assert "needs copydetect" in out and "bash .ci/setup" in out
 
 
-def test_the_canvas_command_takes_compare_with_to_the_batch(tmp_path, capsys, monkeypatch):
+@pytest.mark.parametrize("kind", ["folder", "zip"])
+def test_the_canvas_command_takes_compare_with_to_the_batch(tmp_path, capsys, monkeypatch, kind):
     fixtures = ROOT / "tests" / "fixtures" / "canvas"
     argv = ["--problem", "problem1", str(fixtures / "submissions.zip"), "--gradebook"]
     argv += [str(fixtures / "gradebook_export.csv"), "--out", str(tmp_path / "out"), "--compare-with"]
-    with pytest.raises(SystemExit) as stop:
-        canvas.main([*argv, str(tmp_path / "missing")])
-    assert stop.value.code == 2 and "no such folder" in capsys.readouterr().err
+    for wrong, words in ((tmp_path / "missing", "no such folder"), (fixtures / "submissions.zip", "themselves")):
+        with pytest.raises(SystemExit) as stop:
+            canvas.main([*argv, str(wrong)])
+        assert stop.value.code == 2 and words in capsys.readouterr().err
     earlier = tmp_path / "2025"
-    earlier.mkdir()
-    (earlier / "last_year.ipynb").write_bytes(UNUSUAL)
+    if kind == "zip":
+        earlier = canvas_zip(tmp_path / "2025.zip", {"smithbob_101_5001_problem1_reaching.ipynb": UNUSUAL})
+    else:
+        earlier.mkdir()
+        (earlier / "last_year.ipynb").write_bytes(UNUSUAL)
     seen = {}
-
-    def run_batch(folder, spec_path, out, **options):
-        seen.update(options)
-        return []
-
-    monkeypatch.setattr(batch, "run_batch", run_batch)
+    monkeypatch.setattr(batch, "run_batch", lambda folder, spec_path, out, **options: seen.update(options) or [])
     canvas.main([*argv, str(earlier)])
     assert seen["compare_with"] == [earlier]
 
@@ -420,17 +420,3 @@ def test_last_years_canvas_zip_serves_as_compare_with(tmp_path, capsys):
     assert (tmp_path / "graded" / "similarity.csv").read_text(encoding="utf-8") == (out / "similarity.csv").read_text(
         encoding="utf-8"
     )
-
-
-def test_the_canvas_command_takes_a_zip_as_compare_with_but_not_its_own(tmp_path, capsys, monkeypatch):
-    fixtures = ROOT / "tests" / "fixtures" / "canvas"
-    argv = ["--problem", "problem1", str(fixtures / "submissions.zip"), "--gradebook"]
-    argv += [str(fixtures / "gradebook_export.csv"), "--out", str(tmp_path / "out"), "--compare-with"]
-    with pytest.raises(SystemExit) as stop:
-        canvas.main([*argv, str(fixtures / "submissions.zip")])
-    assert stop.value.code == 2 and "is the submissions themselves" in capsys.readouterr().err
-    last_year = canvas_zip(tmp_path / "2025.zip", {"smithbob_101_5001_problem1_reaching.ipynb": UNUSUAL})
-    seen = {}
-    monkeypatch.setattr(batch, "run_batch", lambda folder, spec_path, out, **options: seen.update(options) or [])
-    canvas.main([*argv, str(last_year)])
-    assert seen["compare_with"] == [last_year]
