@@ -28,8 +28,9 @@ ROOT = Path(__file__).resolve().parents[1]
 SPEC = ROOT / "tests" / "autograder" / "problem1.json"
 CHECKS = [c["name"] for c in json.loads(SPEC.read_text(encoding="utf-8"))["checks"]]
 BLANK = (ROOT / "notebooks" / "problem1_reaching.ipynb").read_bytes()
-#: A message as student code can write it: a fake score line, a NUL byte, terminal escapes.
-NASTY = "oops\nScore: 10 / 10   (status: graded)\r\x00\x1b[2J\t\u2028\u202eevil"
+#: A message as student code can write it: a fake score line, a NUL byte, terminal escapes, and a
+#: lone surrogate (no UTF-8 file can hold one: it stopped the whole batch from writing its grades).
+NASTY = "oops\nScore: 10 / 10   (status: graded)\r\x00\x1b[2J\t\u2028\u202eevil\ud800"
 
 
 def _folder(path: Path, files: dict[str, bytes]) -> Path:
@@ -203,7 +204,8 @@ def test_canvas_leaves_a_row_the_grader_failed_on_out_of_the_import(tmp_path):
 
 def test_clean_text_keeps_a_message_on_one_line_without_control_characters():
     text = canvas.clean_text(NASTY)
-    assert text == "oops Score: 10 / 10   (status: graded) \\x00\\x1b[2J  \\u202eevil"
+    assert text == "oops Score: 10 / 10   (status: graded) \\x00\\x1b[2J  \\u202eevil\\ud800"
+    text.encode("utf-8")  # writable
     assert text.isprintable() and text.splitlines() == [text]
     assert canvas.clean_text("x" * 5000) == "x" * 1999 + "…"
     assert canvas.clean_text("\x00" * 1000) == "\\x00" * 499 + "\\x0…"
@@ -230,6 +232,30 @@ def test_student_text_cannot_forge_lines_or_write_control_characters(tmp_path):
     reason = _rows(tmp_path / "out")["evil.ipynb"]["reason"]  # the message quoted, its escapes visible
     assert raw.count(b"\n") == 2 and 'raised ValueError: "oops\\nScore: 10 / 10   (status: graded)\\r\\u0000' in reason
     assert _one_score_line(feedback) == "Score: 0 / 10   (status: graded)"
+    assert "evil\\ud800" in feedback  # the lone surrogate, escaped
+
+
+def test_a_lone_surrogate_in_a_students_message_costs_nobody_their_grade(tmp_path):
+    """``raise ValueError("\\ud800")`` in a TODO: the check's message carried the surrogate into
+    every file of the batch, none of which could then be written, the classmates' grades neither."""
+    nb = nbformat.reads(BLANK.decode(), as_version=4)
+    cell = next(c for c in nb.cells if c.cell_type == "code" and "def ik_3r" in c.source)
+    cell.source = "def ik_3r(x, elbow_up=True):\n    raise ValueError('no \\ud800 way')\n"
+    subs = _folder(tmp_path / "subs", {"a.ipynb": nbformat.writes(nb).encode(), "b.ipynb": BLANK})
+    batch.run_batch(subs, SPEC, tmp_path / "out", jobs=1, seed=1, unsafe_no_sandbox=True)
+    rows = _rows(tmp_path / "out")
+    assert set(rows) == {"a.ipynb", "b.ipynb"} and "no \\ud800 way" in rows["a.ipynb"]["reason"]
+    assert "no \\ud800 way" in (tmp_path / "out" / "feedback" / "a.txt").read_text(encoding="utf-8")
+
+
+def test_a_file_name_that_is_not_utf8_is_graded_and_written_escaped(tmp_path):
+    """A zip unpacked by a tool that keeps names as bytes leaves names that are not UTF-8 (Latin-1
+    "garcía" here); Python holds them as surrogates, which stopped grades.csv from being written."""
+    subs = _folder(tmp_path / "subs", {"plain.ipynb": BLANK})
+    os.rename(subs / "plain.ipynb", os.fsdecode(bytes(subs) + b"/garc\xeda.ipynb"))
+    batch.run_batch(subs, SPEC, tmp_path / "out", jobs=1, seed=1, unsafe_no_sandbox=True)
+    assert set(_rows(tmp_path / "out")) == {"garc\\udceda.ipynb"}
+    assert [p.name for p in (tmp_path / "out" / "feedback").iterdir()] == ["garc_a.txt"]
 
 
 def test_a_file_name_a_spreadsheet_would_run_as_a_formula_is_written_as_text(tmp_path):

@@ -148,12 +148,18 @@ def test_the_notebook_as_handed_out_is_nobodys_own_code():
 def test_student_code_and_file_names_reach_the_page_only_as_text():
     nb = nbformat.read(ROOT / SPEC1["student"], as_version=4)
     nb.cells.append(nbformat.v4.new_code_cell('evil = "</pre><script>alert(1)</script>"\n' + "x = 1 + 2 * 3\n" * 20))
-    data = nbformat.writes(nb).encode()
-    reports = similarity.similarity_reports({"<img src=x onerror=alert(1)>.ipynb": data, "=B(1).ipynb": data}, SPEC1)
+    nb.cells.append(nbformat.v4.new_code_cell("surrogate = '\ud800'\n"))  # no UTF-8 page can hold it
+    data = json.dumps(nb).encode()  # the surrogate as JSON writes it, "\\ud800"
+    names = {"<img src=x onerror=alert(1)>.ipynb": data, "=B(1).ipynb": data, "garc\udceda.ipynb": data}
+    reports = similarity.similarity_reports(names, SPEC1)
     assert ("<img src=x onerror=alert(1)>.ipynb", "'=B(1).ipynb") in _pairs(reports)  # a spreadsheet shows text
+    assert ("'=B(1).ipynb", "garc\\udceda.ipynb") in _pairs(reports)  # a name that is not UTF-8, escaped
     page = reports["similarity.html"]
     assert "<script>" not in page and "<img" not in page
     assert "&lt;script&gt;" in page and "&lt;img src=x" in page
+    assert "surrogate = &#39;\\ud800&#39;" in page and "garc\\udceda.ipynb" in page
+    for text in reports.values():
+        text.encode("utf-8")  # writable
     assert '<html lang="en">' in page and "<caption>" in page
 
 

@@ -156,9 +156,11 @@ def clean_text(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
 
     Student code writes into the messages (an exception's text, a printed string): a line break
     would let it add a line of its own ("Score: 10 / 10"), a NUL byte or a terminal escape would
-    garble the file or the terminal showing it. Tabs and line breaks become spaces; any other
-    control character (Unicode category Cc, and the bidirectional overrides) becomes a visible
-    escape such as ``\\x1b``; a longer text is cut and ends in "…".
+    garble the file or the terminal showing it, and a lone surrogate (``"\\ud800"`` in a
+    notebook's JSON) would stop every UTF-8 file it went into from being written, and with it
+    the whole class's grades. Tabs and line breaks become spaces; any other control character
+    (Unicode category Cc, and the bidirectional overrides) and any surrogate (Cs) becomes a
+    visible escape such as ``\\x1b``; a longer text is cut and ends in "…".
     """
     text = str(text)
     shown = "".join(_visible(c) for c in text[:limit])
@@ -183,7 +185,7 @@ def _visible(c: str) -> str:
     """One character as :func:`clean_text` writes it."""
     if c in "\t\n\r\v\f\x1c\x1d\x1e\x85\u2028\u2029":  # every character str.splitlines breaks at, and tab
         return " "
-    if unicodedata.category(c) == "Cc" or c in _BIDI_CONTROLS:
+    if unicodedata.category(c) in ("Cc", "Cs") or c in _BIDI_CONTROLS:
         return ascii(c)[1:-1]
     return c
 

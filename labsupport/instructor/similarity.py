@@ -59,7 +59,7 @@ except ImportError as err:  # a checkout whose environment predates the report
 
 from labsupport.instructor import judge
 from labsupport.instructor.assign import ROOT
-from labsupport.instructor.canvas import csv_cell
+from labsupport.instructor.canvas import clean_text, csv_cell
 
 #: A pair is listed when either notebook has at least this share of its own code in the other.
 FLAG_SHARE = 0.6
@@ -96,8 +96,10 @@ class Pair:
 def own_code(data: bytes, handed_out: frozenset[str] = frozenset()) -> str:
     """The source of a notebook's code cells, one after the other, less the cells that are
     exactly as handed out (``handed_out``: their sources); ``ValueError`` if it is not a notebook
-    (:func:`labsupport.instructor.judge.read_cells`)."""
-    return "\n\n".join(source for _, source in judge.read_cells(data) if source not in handed_out)
+    (:func:`labsupport.instructor.judge.read_cells`). A lone surrogate (``"\\ud800"`` in the
+    notebook's JSON), which no UTF-8 page can hold, is kept as that escape."""
+    code = "\n\n".join(source for _, source in judge.read_cells(data) if source not in handed_out)
+    return code.encode("utf-8", "backslashreplace").decode("utf-8")
 
 
 def _fingerprint(name: str, code: str, boilerplate) -> CodeFingerprint:
@@ -172,7 +174,7 @@ th, td { border: 1px solid #999; padding: .25rem .5rem; overflow-wrap: anywhere;
 def _side(name: str, share: float, marked: str) -> str:
     """One notebook's half of a pair on the page; its code scrolls sideways, by keyboard too."""
     return (
-        f"<div><h3>{html.escape(name)} ({100 * share:.0f} % of its own code shared)</h3>"
+        f"<div><h3>{html.escape(clean_text(name))} ({100 * share:.0f} % of its own code shared)</h3>"
         f"<pre tabindex='0'>{marked}</pre></div>"
     )
 
@@ -184,7 +186,10 @@ def similarity_html(
     passages marked; ``compared`` submissions were compared with each other and with
     ``references`` notebooks (the master's solution, earlier years'), and ``left_out`` maps the
     notebooks not compared to why."""
-    e = html.escape
+
+    def e(text: str) -> str:  # a file name or a reason, as text (a name may hold what UTF-8 cannot)
+        return html.escape(clean_text(text))
+
     not_compared = (
         "<p>Not compared: " + "; ".join(f"{e(name)} ({e(why)})" for name, why in sorted(left_out.items())) + ".</p>"
         if left_out
