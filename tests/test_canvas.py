@@ -540,6 +540,18 @@ def test_names_stored_without_the_utf8_flag_are_read_as_utf8_where_they_decode(t
         canvas.safe_zip_entries(zf)
 
 
+def test_a_name_flagged_utf8_that_is_not_says_the_zip_is_unreadable(tmp_path):
+    """zipfile raised UnicodeDecodeError from deep inside: now the message says what to do."""
+    zpath = build_zip(tmp_path / "bad.zip", {"smithbob_1234_50001_AAAA.ipynb": fake_notebook()})
+    raw = bytearray(zpath.read_bytes().replace(b"AAAA", b"\xff\xfeAA"))
+    for signature, offset in ((b"PK\x03\x04", 6), (b"PK\x01\x02", 8)):  # local header, central directory
+        at = raw.find(signature) + offset
+        raw[at : at + 2] = (0x800).to_bytes(2, "little")  # general-purpose flag: the name is UTF-8
+    zpath.write_bytes(raw)
+    with pytest.raises(ValueError, match="is not a readable zip .*download the submissions from Canvas again"):
+        canvas.grade_canvas(zpath, EXPORT, SPEC, tmp_path / "out", grade=fake_grade([]))
+
+
 def test_zip_bombs_are_refused_or_left_ungraded(tmp_path, monkeypatch):
     big = build_zip(
         tmp_path / "big.zip", {"smithbob_1234_50001_problem1_reaching.ipynb": fake_notebook(p1_ik=3) + b" " * 200_000}

@@ -744,7 +744,7 @@ def open_zip(zip_path: Path) -> zipfile.ZipFile:
     """The zip at ``zip_path``, open; ``ValueError`` saying what to do when it cannot be read."""
     try:
         return zipfile.ZipFile(zip_path)
-    except (zipfile.BadZipFile, OSError) as err:
+    except (zipfile.BadZipFile, OSError, UnicodeDecodeError) as err:  # the last: a name flagged UTF-8 that is not
         raise ValueError(
             f"{zip_path} is not a readable zip ({err}): download the submissions from Canvas again"
         ) from None
