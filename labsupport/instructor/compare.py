@@ -120,7 +120,10 @@ def main(argv=None) -> None:
     elif args.submissions.is_dir():
         payloads = folder_submissions(parser, args.submissions)
     else:
-        parser.error(f"{args.submissions} is neither a folder nor a .zip: give the folder that holds the .ipynb files")
+        parser.error(
+            f"{args.submissions} is neither a folder nor a .zip: give the folder that holds the .ipynb files, "
+            "or Canvas's Download Submissions zip"
+        )
     try:
         reports = shared_code_reports(payloads, spec, args.compare_with, args.flag)
     except ValueError as err:  # the spec's student notebook is gone
