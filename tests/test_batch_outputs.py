@@ -495,7 +495,7 @@ def test_the_batch_keeps_a_huge_notebook_in_memory_without_its_outputs(tmp_path,
     def sizes(spec, notebook, *args, **kwargs):
         return {"status": "graded", "scores": {}, "messages": {}, "notes": [f"{len(notebook)} bytes"]}
 
-    monkeypatch.setattr(batch, "STRIP_OUTPUTS_BYTES", 4000)
+    monkeypatch.setattr(canvas, "STRIP_OUTPUTS_BYTES", 4000)
     monkeypatch.setattr(judge, "grade", sizes)  # the pool's workers are forked: they inherit both
     subs = _folder(tmp_path / "subs", {"big.ipynb": big, "small.ipynb": BLANK[:100]})
     rows = {r["file"]: r for r in batch.run_batch(subs, SPEC, tmp_path / "out", jobs=1, seed=1, unsafe_no_sandbox=True)}

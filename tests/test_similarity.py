@@ -365,7 +365,6 @@ def test_a_huge_earlier_notebook_is_held_without_its_outputs(tmp_path, monkeypat
     earlier.mkdir()
     (earlier / "big.ipynb").write_bytes(nbformat.writes(nb).encode())
     zipped = canvas_zip(tmp_path / "2024.zip", {"smithbob_101_5001_problem1_reaching.ipynb": nbformat.writes(nb)})
-    monkeypatch.setattr(batch, "STRIP_OUTPUTS_BYTES", 40_000)
     monkeypatch.setattr(canvas, "STRIP_OUTPUTS_BYTES", 40_000)
     held = batch.earlier_notebooks([earlier, zipped], SPEC1)
     assert set(held) == {"2025/big.ipynb", "2024.zip/smithbob_101_5001_problem1_reaching.ipynb"}

@@ -71,17 +71,17 @@ from labsupport.instructor.assign import chosen_spec, load_spec, problem_argumen
 from labsupport.instructor.canvas import (
     BATCH_RESULTS,
     FEEDBACK_HEADER,
-    STRIP_OUTPUTS_BYTES,
     clean_text,
     csv_cell,
+    held,
     is_os_metadata,
+    is_zip,
     keep_previous,
     keep_private,
     open_zip,
     remove_stale_feedback,
     safe_zip_entries,
     seed_argument,
-    without_outputs,
     zip_notebooks,
 )
 from labsupport.instructor.rubric import canvas_rubric_csv, rubric
@@ -297,11 +297,9 @@ def shared_code_reports(
 
 
 def read_notebook(path: Path) -> bytes:
-    """The bytes of the notebook at ``path``, without its outputs when it is over
-    ``STRIP_OUTPUTS_BYTES``: it is kept in memory until graded and compared, and only its code
-    is read."""
-    data = path.read_bytes()
-    return without_outputs(data) if len(data) > STRIP_OUTPUTS_BYTES else data
+    """The notebook at ``path`` as the grader holds it
+    (:func:`labsupport.instructor.canvas.held`)."""
+    return held(path.read_bytes())
 
 
 def earlier_notebooks(folders: list[Path], spec: dict) -> dict[str, bytes]:
@@ -312,7 +310,7 @@ def earlier_notebooks(folders: list[Path], spec: dict) -> dict[str, bytes]:
     read is named on stderr and left out."""
     notebooks = {}
     for folder in folders:
-        if folder.is_file():
+        if is_zip(folder):
             found, left_out = zip_notebooks(folder, spec)
             for entry in left_out:
                 print(f"not compared: {clean_text(f'{folder}/{entry}')}", file=sys.stderr)
@@ -424,7 +422,7 @@ def atomic_write(path: Path, text: str) -> None:
 
 def check_submissions_folder(parser: argparse.ArgumentParser, folder: Path) -> None:
     """Stop with what to do when ``folder`` is a zip, or holds no notebook at its top level."""
-    if folder.is_file() and folder.suffix == ".zip":
+    if is_zip(folder):
         parser.error(
             f"{folder} is a zip file: for Canvas's 'Download Submissions' zip run "
             "python -m labsupport.instructor.canvas (see the README); otherwise unzip it into a folder"
@@ -456,7 +454,7 @@ def check_compare_with(parser: argparse.ArgumentParser, folders: list[Path], sub
     cannot be read, or is the submissions themselves (whose notebooks are compared with each other
     already)."""
     for folder in folders:
-        if folder.is_file() and folder.suffix.lower() == ".zip":
+        if is_zip(folder):
             try:
                 with open_zip(folder) as zf:
                     entries = [i.filename for i in safe_zip_entries(zf) if not is_os_metadata(i.filename)]

@@ -364,6 +364,18 @@ def safe_zip_entries(zf: zipfile.ZipFile) -> list[zipfile.ZipInfo]:
     return [info for info in infos if not info.is_dir()]
 
 
+def read_notebook_entry(zf: zipfile.ZipFile, info: zipfile.ZipInfo) -> tuple[bytes | None, str | None]:
+    """The notebook in the entry, :func:`held` (and ``None``), or ``None`` and why it cannot be
+    read: damaged in the zip, or over :data:`MAX_NOTEBOOK_BYTES`."""
+    try:
+        data = read_member(zf, info)
+    except (zipfile.BadZipFile, zlib.error, EOFError) as err:
+        return None, f"damaged in the zip ({err})"
+    if data is None:
+        return None, f"larger than the {MAX_NOTEBOOK_BYTES:,} bytes a notebook may have"
+    return held(data), None
+
+
 def read_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, limit: int | None = None) -> bytes | None:
     """The entry's bytes, or None when it holds more than ``limit`` bytes (default :data:`MAX_NOTEBOOK_BYTES`).
 
@@ -376,6 +388,13 @@ def read_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, limit: int | None = 
     with zf.open(info) as f:
         data = f.read(limit + 1)
     return None if len(data) > limit else data
+
+
+def held(data: bytes) -> bytes:
+    """A notebook's bytes as the graders hold them in memory until graded and compared: without
+    its outputs (:func:`without_outputs`) when over :data:`STRIP_OUTPUTS_BYTES`, as they are
+    otherwise; only the code is read."""
+    return without_outputs(data) if len(data) > STRIP_OUTPUTS_BYTES else data
 
 
 def without_outputs(data: bytes) -> bytes:
@@ -740,6 +759,11 @@ def _run_batch(jobs: int | None, seed: int | None = None, compare_with: list[Pat
     return grade
 
 
+def is_zip(path: Path) -> bool:
+    """Whether ``path`` is a file named as a zip (``.zip`` in any case)."""
+    return path.is_file() and path.suffix.lower() == ".zip"
+
+
 def open_zip(zip_path: Path) -> zipfile.ZipFile:
     """The zip at ``zip_path``, open; ``ValueError`` saying what to do when it cannot be read."""
     try:
@@ -782,15 +806,11 @@ def zip_notebooks(zip_path: Path, spec: dict) -> tuple[dict[str, bytes], list[st
                 chosen.append(pick.entry)
         infos = {info.filename: info for info in entries}
         for entry in sorted(chosen):
-            try:
-                data = read_member(zf, infos[entry])
-            except (zipfile.BadZipFile, zlib.error, EOFError) as err:
-                left_out.append(f"{entry} (damaged in the zip: {err})")
-                continue
-            if data is None:
-                left_out.append(f"{entry} (larger than {MAX_NOTEBOOK_BYTES:,} bytes)")
+            data, why = read_notebook_entry(zf, infos[entry])
+            if why:
+                left_out.append(f"{entry} ({why})")
             else:
-                notebooks[entry] = without_outputs(data) if len(data) > STRIP_OUTPUTS_BYTES else data
+                notebooks[entry] = data
     return notebooks, left_out
 
 
@@ -887,18 +907,10 @@ def _grade(
         with zipfile.ZipFile(zip_path) as zf:
             infos = {info.filename: info for info in safe_zip_entries(zf)}
             for user, f in sorted(chosen.items()):
-                try:
-                    data = read_member(zf, infos[f.entry])
-                except (zipfile.BadZipFile, zlib.error, EOFError) as err:
-                    result.not_scored.append(f"{f.entry}: damaged in the zip ({err}), not graded")
+                data, why = read_notebook_entry(zf, infos[f.entry])
+                if why:
+                    result.not_scored.append(f"{f.entry}: {why}, not graded")
                     continue
-                if data is None:
-                    result.not_scored.append(
-                        f"{f.entry}: larger than the {MAX_NOTEBOOK_BYTES:,} bytes a notebook may have, not graded"
-                    )
-                    continue
-                if len(data) > STRIP_OUTPUTS_BYTES:
-                    data = without_outputs(data)
                 name = f"{f.name or 'student'}_{user}.ipynb"
                 (folder / name).write_bytes(data)
                 files[name] = user

@@ -34,7 +34,7 @@ from labsupport.instructor.batch import (
     read_submissions,
     shared_code_reports,
 )
-from labsupport.instructor.canvas import clean_text, keep_previous, keep_private, zip_notebooks
+from labsupport.instructor.canvas import clean_text, is_zip, keep_previous, keep_private, zip_notebooks
 from labsupport.instructor.similarity import FLAG_SHARE
 
 #: The files this command writes (and moves into ``previous/`` when an earlier run left them).
@@ -115,7 +115,7 @@ def main(argv=None) -> None:
     except ValueError as err:  # not JSON, or not a spec of known checks
         parser.error(str(err))
     check_compare_with(parser, args.compare_with, args.submissions)
-    if args.submissions.is_file() and args.submissions.suffix.lower() == ".zip":
+    if is_zip(args.submissions):
         payloads = zip_submissions(parser, args.submissions, spec)
     elif args.submissions.is_dir():
         payloads = folder_submissions(parser, args.submissions)
