@@ -269,14 +269,19 @@ def run_batch(
     return rows
 
 
+def payload(name: str, data: bytes) -> tuple[str, bytes | None, str | None]:
+    """A submission as the graders pass it on: its name, bytes and ``None``; or, for an empty
+    file, its name, ``None`` and why it cannot be graded."""
+    return (name, data, None) if data else (name, None, EMPTY_FILE)
+
+
 def read_submissions(files: list[Path]) -> list[tuple[str, bytes | None, str | None]]:
-    """Each file's name, bytes (:func:`read_notebook`) and ``None``; or its name, ``None`` and
-    why it cannot be graded (empty, or unreadable)."""
+    """Each file as a :func:`payload` of its bytes (:func:`read_notebook`); or its name, ``None``
+    and why it cannot be read."""
     payloads = []
     for p in files:
         try:
-            data = read_notebook(p)
-            payloads.append((p.name, data, None) if data else (p.name, None, EMPTY_FILE))
+            payloads.append(payload(p.name, read_notebook(p)))
         except OSError as err:
             payloads.append((p.name, None, f"could not read the file: {err.strerror}"))
     return payloads

@@ -24,13 +24,13 @@ from pathlib import Path
 
 from labsupport.instructor.assign import chosen_spec, load_spec, problem_arguments
 from labsupport.instructor.batch import (
-    EMPTY_FILE,
     atomic_write,
     check_compare_with,
     check_submissions_folder,
     compare_with_argument,
     left_aside,
     list_notebooks,
+    payload,
     read_submissions,
     shared_code_reports,
 )
@@ -80,7 +80,7 @@ def zip_submissions(
         print(f"not compared: {clean_text(entry)}", file=sys.stderr)
     if not notebooks:
         parser.error(f"no notebook for {spec['problem']} in {zip_path}")
-    return [(name, data, None) if data else (name, None, EMPTY_FILE) for name, data in notebooks.items()]
+    return [payload(name, data) for name, data in notebooks.items()]
 
 
 def main(argv=None) -> None:

@@ -86,12 +86,6 @@ class Pair:
     marked_a: str
     marked_b: str
 
-    @property
-    def rank(self) -> float:
-        """What lists the pair, and orders the list: the largest of its three shares, a share of
-        more than a whole answer (two copies holding the same extra code) counting as a whole."""
-        return max(self.share_a, self.share_b, min(self.share_answer, 1.0))
-
 
 def own_code(data: bytes, handed_out: frozenset[str] = frozenset()) -> str:
     """The source of a notebook's code cells, one after the other, less the cells that are
@@ -105,6 +99,13 @@ def own_code(data: bytes, handed_out: frozenset[str] = frozenset()) -> str:
 def _fingerprint(name: str, code: str, boilerplate) -> CodeFingerprint:
     """copydetect's fingerprint of ``code`` (Python), less the fingerprints in ``boilerplate``."""
     return CodeFingerprint(name, NOISE_THRESHOLD, 1, boilerplate, filter=True, language="python", fp=io.StringIO(code))
+
+
+def listed_share(share_a: float, share_b: float, share_answer: float) -> float:
+    """What lists a pair (at :data:`FLAG_SHARE` or more) and orders the list: the largest of its
+    three shares, a share of more than a whole answer (two copies holding the same extra code)
+    counting as a whole."""
+    return max(share_a, share_b, min(share_answer, 1.0))
 
 
 def answer_tokens(prints: dict[str, CodeFingerprint], codes: dict[str, str]) -> int:
@@ -133,12 +134,12 @@ def similar_pairs(
     pairs = []
     for a, b in [*itertools.combinations(codes, 2), *itertools.product(codes, references)]:
         shared, (share_a, share_b), (slices_a, slices_b) = compare_files(prints[a], prints[b])
-        if not shared or max(share_a, share_b, shared / answer) < flag:
+        if not shared or listed_share(share_a, share_b, shared / answer) < flag:
             continue
         marked_a, _ = highlight_overlap(everyone[a], slices_a, "<mark>", "</mark>", escape_html=True)
         marked_b, _ = highlight_overlap(everyone[b], slices_b, "<mark>", "</mark>", escape_html=True)
         pairs.append(Pair(a, b, float(share_a), float(share_b), int(shared), shared / answer, marked_a, marked_b))
-    return sorted(pairs, key=lambda p: (-p.rank, p.a, p.b))
+    return sorted(pairs, key=lambda p: (-listed_share(p.share_a, p.share_b, p.share_answer), p.a, p.b))
 
 
 def similarity_csv(pairs: list[Pair]) -> str:
@@ -171,10 +172,16 @@ th, td { border: 1px solid #999; padding: .25rem .5rem; overflow-wrap: anywhere;
 """
 
 
+def _text(text: str) -> str:
+    """A file name or a reason as the page shows it: as text, on one line, and writable in UTF-8
+    (a name may hold what UTF-8 cannot: :func:`labsupport.instructor.canvas.clean_text`)."""
+    return html.escape(clean_text(text))
+
+
 def _side(name: str, share: float, marked: str) -> str:
     """One notebook's half of a pair on the page; its code scrolls sideways, by keyboard too."""
     return (
-        f"<div><h3>{html.escape(clean_text(name))} ({100 * share:.0f} % of its own code shared)</h3>"
+        f"<div><h3>{_text(name)} ({100 * share:.0f} % of its own code shared)</h3>"
         f"<pre tabindex='0'>{marked}</pre></div>"
     )
 
@@ -186,10 +193,7 @@ def similarity_html(
     passages marked; ``compared`` submissions were compared with each other and with
     ``references`` notebooks (the master's solution, earlier years'), and ``left_out`` maps the
     notebooks not compared to why."""
-
-    def e(text: str) -> str:  # a file name or a reason, as text (a name may hold what UTF-8 cannot)
-        return html.escape(clean_text(text))
-
+    e = _text
     not_compared = (
         "<p>Not compared: " + "; ".join(f"{e(name)} ({e(why)})" for name, why in sorted(left_out.items())) + ".</p>"
         if left_out
