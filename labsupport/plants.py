@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import resources
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -195,12 +196,28 @@ class SingleJoint:
 # ---------------------------------------------------------------------------------------
 
 
+def models_folder():
+    """The folder of shipped MJCF files, ``labsupport.models`` (the checkout's ``models/``).
+
+    It exists only in an installed ``labsupport`` (``pip install -e .`` in a checkout maps
+    ``models/`` there); a checkout merely put on ``sys.path`` lacks it, and is told so.
+    """
+    try:
+        return resources.files("labsupport.models")
+    except ModuleNotFoundError:
+        raise ModuleNotFoundError(
+            "labsupport's models (labsupport.models) are missing: this labsupport was imported from "
+            f"{Path(__file__).parent.parent} without being installed. Install it: run "
+            "`pip install -e .` in that folder"
+        ) from None
+
+
 def model_path(name: str):
     """Path of a shipped MJCF file, e.g. ``model_path("planar_2r")`` → ``.../planar_2r.xml``.
 
     Resolved inside the installed package, so it works from any working directory.
     """
-    root = resources.files("labsupport.models")
+    root = models_folder()
     if not isinstance(name, str):
         raise ValueError(f"a model is named by a string, such as 'planar_2r', got {name!r}")
     path = root / (name if name.endswith(".xml") else f"{name}.xml")

