@@ -403,8 +403,10 @@ def video_html(
     The video waits for the reader: it starts from its controls (or Space once focused), so
     nothing on the page moves unasked (WCAG 2.1, 2.2.2), and loops once started.
     ``description`` is the video's text alternative, required as a figure's is
-    (:func:`labsupport.book.text_alternative`): the caption under it, its accessible name
-    (``aria-label``), and what a browser that cannot play it shows instead.
+    (:func:`labsupport.book.text_alternative`): its accessible name (``aria-label``), the
+    caption under it, and what a browser that cannot play it shows instead. The caption is
+    hidden from screen readers (``aria-hidden``), which read the name already: they read the
+    description once, not twice in a row.
     """
     text = escape(text_alternative(description, "a video"))
     try:
@@ -423,7 +425,7 @@ def video_html(
     html = mediapy.html_from_compressed_video(data, frames.shape[2], frames.shape[1], title=title, autoplay=False)
     html = html.replace("<video ", f'<video aria-label="{text}" ', 1)
     html = html.replace("This browser does not support the video tag.", text, 1)
-    return f"<figure>{html}<figcaption>{text}</figcaption></figure>"
+    return f'<figure>{html}<figcaption aria-hidden="true">{text}</figcaption></figure>'
 
 
 def show_video(

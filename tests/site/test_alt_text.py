@@ -9,8 +9,9 @@ screen-reader user nothing. These tests read the built pages (``_build/html``) a
   (``role="presentation"``/``"none"`` or ``aria-hidden="true"``); a figure (a notebook output,
   anything under ``_images/`` or inline as ``data:image``) at least :data:`MIN_WORDS` words;
 * every ``<video>`` has a text alternative of at least :data:`MIN_WORDS` words: its
-  ``aria-label`` or ``aria-labelledby``, the ``<figcaption>`` of the ``<figure>`` around it, or
-  its fallback content (the browser's stock "does not support the video tag" does not count).
+  ``aria-label`` or ``aria-labelledby``, the ``<figcaption>`` of the ``<figure>`` around it
+  (unless ``aria-hidden``, as the course's are: they repeat the name for the eye alone), or its
+  fallback content (the browser's stock "does not support the video tag" does not count).
 
 The notebooks give their figures these texts in the cell metadata,
 ``{"mystnb": {"image": {"alt": "..."}}}``; the source-level tests at the end check that every
@@ -93,8 +94,9 @@ def video_text(video, soup) -> list[str]:
         if target is not None:
             found.append(target.get_text(" "))
     figure = video.find_parent("figure")
-    if figure is not None and figure.find("figcaption") is not None:
-        found.append(figure.find("figcaption").get_text(" "))
+    caption = figure.find("figcaption") if figure is not None else None
+    if caption is not None and caption.get("aria-hidden") != "true":  # a hidden one is for the eye alone
+        found.append(caption.get_text(" "))
     fallback = " ".join(
         s for s in video.find_all(string=True, recursive=True) if s.parent.name not in ("source", "track")
     )
@@ -177,6 +179,17 @@ def test_rules_reject_a_video_with_the_browsers_stock_fallback_only():
     )
     problems = page_problems(_main(mediapy_like))[0]
     assert len(problems) == 1 and "no text alternative" in problems[0]
+
+
+def test_rules_reject_a_video_whose_only_text_is_a_caption_hidden_from_screen_readers():
+    hidden = (
+        '<figure><video controls><source src="a.mp4"></video><figcaption aria-hidden="true">'
+        "The arm follows the blue circle twice, in red.</figcaption></figure>"
+    )
+    problems = page_problems(_main(hidden))[0]
+    assert len(problems) == 1 and "no text alternative" in problems[0]
+    named = hidden.replace("<video controls>", '<video controls aria-label="The arm follows the circle twice.">')
+    assert page_problems(_main(named))[0] == []
 
 
 # --------------------------------------------------------------------------------------------
