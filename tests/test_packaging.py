@@ -1,5 +1,6 @@
 """labsupport installs as a package whose models travel with it."""
 
+import os
 import subprocess
 import sys
 import zipfile
@@ -81,7 +82,7 @@ def test_a_checkout_on_the_path_but_not_installed_is_told_to_install(tmp_path):
         cwd=tmp_path,
         capture_output=True,
         text=True,
-        env={"PYTHONPATH": ":".join(path), "MUJOCO_GL": "egl"},
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(path)},
     )
     assert out.returncode == 0, out.stderr
     lines = out.stdout.splitlines()
