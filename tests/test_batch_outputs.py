@@ -22,7 +22,7 @@ import nbformat
 import pytest
 from test_canvas import EXPORT, build_zip, fake_grade, fake_notebook
 
-from labsupport.instructor import assign, batch, canvas, judge
+from labsupport.instructor import assign, batch, canvas, gradebook, judge, outputs, submissions
 
 ROOT = Path(__file__).resolve().parents[1]
 SPEC = ROOT / "tests" / "autograder" / "problem1.json"
@@ -196,20 +196,23 @@ def test_canvas_leaves_a_row_the_grader_failed_on_out_of_the_import(tmp_path):
         build_zip(tmp_path / "s.zip", members), EXPORT, SPEC, tmp_path / "out", grade=fake_grade([])
     )
     assert result.scores == {} and any("error" in m for m in result.not_scored)
-    before, after = canvas.read_gradebook(EXPORT), canvas.read_gradebook(tmp_path / "out" / "gradebook_import.csv")
+    before, after = (
+        gradebook.read_gradebook(EXPORT),
+        gradebook.read_gradebook(tmp_path / "out" / "gradebook_import.csv"),
+    )
     assert 1234 in before.student_rows and 1234 not in after.student_rows  # Canvas keeps what it holds
     feedback = result.feedback[1234].read_text(encoding="utf-8")
     assert "Not scored: error" in feedback and "(0 / " not in feedback and "- p1_ik (- / 3)" in feedback
 
 
 def test_clean_text_keeps_a_message_on_one_line_without_control_characters():
-    text = canvas.clean_text(NASTY)
+    text = outputs.clean_text(NASTY)
     assert text == "oops Score: 10 / 10   (status: graded) \\x00\\x1b[2J  \\u202eevil\\ud800"
     text.encode("utf-8")  # writable
     assert text.isprintable() and text.splitlines() == [text]
-    assert canvas.clean_text("x" * 5000) == "x" * 1999 + "…"
-    assert canvas.clean_text("\x00" * 1000) == "\\x00" * 499 + "\\x0…"
-    assert canvas.clean_text("é ✔ 3 / 10: ik_3r returned NaN") == "é ✔ 3 / 10: ik_3r returned NaN"
+    assert outputs.clean_text("x" * 5000) == "x" * 1999 + "…"
+    assert outputs.clean_text("\x00" * 1000) == "\\x00" * 499 + "\\x0…"
+    assert outputs.clean_text("é ✔ 3 / 10: ik_3r returned NaN") == "é ✔ 3 / 10: ik_3r returned NaN"
 
 
 def _one_score_line(text: str) -> str:
@@ -264,7 +267,7 @@ def test_a_file_name_a_spreadsheet_would_run_as_a_formula_is_written_as_text(tmp
     subs = _folder(tmp_path / "subs", dict.fromkeys(names, BLANK))
     batch.run_batch(subs, SPEC, tmp_path / "out", jobs=1, seed=1, unsafe_no_sandbox=True)
     assert set(_rows(tmp_path / "out")) == {"'" + n for n in names[:-1]} | {"plain.ipynb"}
-    assert canvas.csv_cell("\t=1") == " =1" and canvas.csv_cell("a=1") == "a=1"
+    assert outputs.csv_cell("\t=1") == " =1" and outputs.csv_cell("a=1") == "a=1"
 
 
 def test_canvas_feedback_and_report_keep_student_text_on_one_line(tmp_path):
@@ -469,7 +472,7 @@ def test_canvas_grades_a_notebook_over_64_mib_without_its_outputs(tmp_path):
     (notebook,) = graded.values()
     assert len(notebook) < 10_000 and b"attachment" in notebook and b'"p.png"' not in notebook
     assert judge.read_cells(notebook) == judge.read_cells(data)  # the cells the grader runs
-    assert canvas.without_outputs(b"not json") == b"not json"  # left for the grader to explain
+    assert submissions.without_outputs(b"not json") == b"not json"  # left for the grader to explain
 
 
 def test_problem_specs_are_found_from_any_working_folder(tmp_path, capsys, monkeypatch):
@@ -495,13 +498,13 @@ def test_the_batch_keeps_a_huge_notebook_in_memory_without_its_outputs(tmp_path,
     def sizes(spec, notebook, *args, **kwargs):
         return {"status": "graded", "scores": {}, "messages": {}, "notes": [f"{len(notebook)} bytes"]}
 
-    monkeypatch.setattr(canvas, "STRIP_OUTPUTS_BYTES", 4000)
+    monkeypatch.setattr(submissions, "STRIP_OUTPUTS_BYTES", 4000)
     monkeypatch.setattr(judge, "grade", sizes)  # the pool's workers are forked: they inherit both
     subs = _folder(tmp_path / "subs", {"big.ipynb": big, "small.ipynb": BLANK[:100]})
     rows = {r["file"]: r for r in batch.run_batch(subs, SPEC, tmp_path / "out", jobs=1, seed=1, unsafe_no_sandbox=True)}
     held = int(rows["big.ipynb"]["notes"][0].split()[0])
     assert held < len(big) - 5000 and rows["small.ipynb"]["notes"][0] == "100 bytes"
-    assert judge.read_cells(canvas.without_outputs(big)) == judge.read_cells(big)
+    assert judge.read_cells(submissions.without_outputs(big)) == judge.read_cells(big)
 
 
 def test_canvas_grades_can_be_reproduced_with_their_seed(tmp_path, capsys, monkeypatch):
@@ -515,7 +518,7 @@ def test_canvas_grades_can_be_reproduced_with_their_seed(tmp_path, capsys, monke
         seeds.append(seed)
         return fake_grade([])(folder, spec_path, out)
 
-    monkeypatch.setattr(batch, "run_batch", run_batch)
+    monkeypatch.setattr(canvas, "run_batch", run_batch)
     members = {"smithbob_1234_50001_problem1_reaching.ipynb": fake_notebook(p1_ik=3)}
     canvas.grade_canvas(build_zip(tmp_path / "s.zip", members), EXPORT, SPEC, tmp_path / "out", seed=123)
     assert seeds == [123]

@@ -1,7 +1,8 @@
 """From Canvas to Canvas: the "Download Submissions" zip and the gradebook export, round trip.
 
 The fixtures in tests/fixtures/canvas/ are synthetic but named and laid out as Canvas writes them
-(see the docstring of labsupport.instructor.canvas for the sources):
+(see the docstrings of labsupport.instructor.submissions and labsupport.instructor.gradebook
+for the sources):
 
 * ``gradebook_export.csv``: an export with a custom column, a Manual Posting row, the Points
   Possible row (the Problem 1 column is worth 20 points, its checks 10), read-only totals,
@@ -25,7 +26,7 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from labsupport.instructor import canvas
+from labsupport.instructor import canvas, gradebook, outputs, submissions
 
 ROOT = Path(__file__).resolve().parents[1]
 FIXTURES = ROOT / "tests" / "fixtures" / "canvas"
@@ -214,7 +215,7 @@ def round_trip(tmp_path):
     ],
 )
 def test_parse_submission_name(entry, name, user, late, attachment, original, resubmission, kind):
-    f = canvas.parse_submission_name(entry)
+    f = submissions.parse_submission_name(entry)
     assert (f.name, f.user_id, f.late, f.attachment_id, f.original, f.resubmission, f.kind) == (
         name,
         user,
@@ -231,22 +232,22 @@ def test_parse_submission_name(entry, name, user, late, attachment, original, re
     "entry", ["problem1_reaching.ipynb", "notes.txt", "smithbob_problem1.ipynb", "__MACOSX/._smithbob", "1234.ipynb"]
 )
 def test_names_canvas_does_not_write_are_not_parsed(entry):
-    assert canvas.parse_submission_name(entry) is None
+    assert submissions.parse_submission_name(entry) is None
 
 
 def test_anonymous_and_resubmission_details():
-    f = canvas.parse_submission_name("LATE_anon_q7Kx2_50011_problem1_reaching-2.ipynb")
+    f = submissions.parse_submission_name("LATE_anon_q7Kx2_50011_problem1_reaching-2.ipynb")
     assert f.anonymous_id == "q7Kx2" and f.user_id is None
     assert f.base_name == "problem1_reaching.ipynb" and f.resubmission == 2
     assert f.prefix == "LATE_anon_q7Kx2_50011"
-    assert canvas.parse_submission_name("a_1_2_lab-v2.ipynb").base_name == "lab-v2.ipynb"
-    uuid = canvas.parse_submission_name("a_1_2_p1-0b5e9f4c-6a1d-4c2e-9f3a-1b2c3d4e5f60.ipynb")
+    assert submissions.parse_submission_name("a_1_2_lab-v2.ipynb").base_name == "lab-v2.ipynb"
+    uuid = submissions.parse_submission_name("a_1_2_p1-0b5e9f4c-6a1d-4c2e-9f3a-1b2c3d4e5f60.ipynb")
     assert uuid.base_name == "p1.ipynb" and uuid.resubmission == 8
 
 
 def test_choose_notebook_prefers_the_problem_then_the_latest_upload():
     files = [
-        canvas.parse_submission_name(n)
+        submissions.parse_submission_name(n)
         for n in (
             "kim_1_10_problem2_tracking.ipynb",
             "kim_1_11_problem1_reaching.ipynb",
@@ -255,13 +256,13 @@ def test_choose_notebook_prefers_the_problem_then_the_latest_upload():
             "kim_1_14_report.pdf",
         )
     ]
-    assert canvas.choose_notebook(files, "problem1_reaching", "problem1").attachment_id == 13
+    assert submissions.choose_notebook(files, "problem1_reaching", "problem1").attachment_id == 13
     # the latest upload wins, whatever its suffix says (past -7 Canvas appends a UUID)
-    later = canvas.parse_submission_name("kim_1_15_problem1_reaching-0b5e9f4c-6a1d-4c2e-9f3a-1b2c3d4e5f60.ipynb")
-    assert canvas.choose_notebook([*files, later], "problem1_reaching", "problem1") is later
+    later = submissions.parse_submission_name("kim_1_15_problem1_reaching-0b5e9f4c-6a1d-4c2e-9f3a-1b2c3d4e5f60.ipynb")
+    assert submissions.choose_notebook([*files, later], "problem1_reaching", "problem1") is later
     # named after the Problem only, or not at all: still a notebook, never the PDF
-    assert canvas.choose_notebook(files[:1] + files[4:], "problem1_reaching", "problem1").attachment_id == 10
-    assert canvas.choose_notebook(files[4:], "problem1_reaching", "problem1") is None
+    assert submissions.choose_notebook(files[:1] + files[4:], "problem1_reaching", "problem1").attachment_id == 10
+    assert submissions.choose_notebook(files[4:], "problem1_reaching", "problem1") is None
 
 
 @pytest.mark.parametrize(
@@ -269,14 +270,14 @@ def test_choose_notebook_prefers_the_problem_then_the_latest_upload():
     [(20, "20"), (15.0, "15"), (7.5, "7.5"), (6.666666, "6.67"), (0.0, "0"), (-0.001, "0"), (12.345, "12.35")],
 )
 def test_format_score(value, text):
-    assert canvas.format_score(value) == text
+    assert gradebook.format_score(value) == text
 
 
 def test_scaled_score():
-    assert canvas.scaled_score(7.5, 10, 20) == 15
-    assert canvas.scaled_score(7.5, 10, 10) == 7.5
-    assert canvas.scaled_score(7.5, 10, None) == 7.5
-    assert canvas.scaled_score(3, 10, 100) == pytest.approx(30)
+    assert gradebook.scaled_score(7.5, 10, 20) == 15
+    assert gradebook.scaled_score(7.5, 10, 10) == 7.5
+    assert gradebook.scaled_score(7.5, 10, None) == 7.5
+    assert gradebook.scaled_score(3, 10, 100) == pytest.approx(30)
 
 
 # --- fixtures ---------------------------------------------------------------------------------------
@@ -302,8 +303,8 @@ def test_the_import_holds_the_identifying_columns_and_the_problems_only(round_tr
     """It used to echo every other column of the export: importing an export made before grades
     were changed in Canvas put the old grades back."""
     _, out, _ = round_trip
-    before = canvas.read_gradebook(EXPORT)
-    after = canvas.read_gradebook(out / "gradebook_import.csv")
+    before = gradebook.read_gradebook(EXPORT)
+    after = gradebook.read_gradebook(out / "gradebook_import.csv")
     col = before.header.index(COLUMN)
     assert after.header == ["Student", "ID", "SIS User ID", "SIS Login ID", "Section", COLUMN]
     assert set(after.student_rows) == set(EXPECTED_CELLS) and after.points_row == before.points_row == 2
@@ -312,8 +313,8 @@ def test_the_import_holds_the_identifying_columns_and_the_problems_only(round_tr
     assert len(after.records) == len(kept)
     for r, new in zip(kept, after.records, strict=True):
         old = before.records[r]
-        old_fields, old_end = canvas.split_fields(old, ",")
-        new_fields, new_end = canvas.split_fields(new, ",")
+        old_fields, old_end = gradebook.split_fields(old, ",")
+        new_fields, new_end = gradebook.split_fields(new, ",")
         assert new_end == old_end and new_fields[:5] == old_fields[:5], f"record {r}"  # raw text, quotes kept
         assert new_fields[5:] == [EXPECTED_CELLS.get(user_of_row.get(r), old_fields[col])], f"record {r}"
     raw = (out / "gradebook_import.csv").read_text(encoding="utf-8")
@@ -329,7 +330,7 @@ def test_students_without_a_new_score_are_left_out_of_the_import_never_zero(roun
     """Their rows used to be kept with the exported cell, which put back what Canvas held at the
     export over a grade entered since; left out, they keep whatever Canvas holds."""
     result, out, _ = round_trip
-    after = canvas.read_gradebook(out / "gradebook_import.csv")
+    after = gradebook.read_gradebook(out / "gradebook_import.csv")
     for user in (1237, 9999, 1239, 1240):  # missing from the zip, Test Student, timed out, excused
         assert user not in after.student_rows, user
     assert any("Nguyen, Linh (ID 1237)" in m for m in result.missing)
@@ -345,7 +346,7 @@ def test_unmatched_files_are_listed_never_dropped(round_trip):
     report = (out / "report.txt").read_text()
     feedback_names = {p.name for p in result.feedback.values()}
     for entry in ZIP_MEMBERS:  # every file of the zip is graded (it has feedback) or named in the report
-        f = canvas.parse_submission_name(entry)
+        f = submissions.parse_submission_name(entry)
         assert entry in report or (f is not None and f"{f.prefix}_feedback.txt" in feedback_names), entry
     # the grader saw exactly one notebook per known student, in a private folder it no longer has
     assert calls[0]["mode"] == 0o700 and not calls[0]["folder"].exists()
@@ -389,7 +390,7 @@ def test_feedback_files_carry_the_score_and_every_message_and_canvas_can_match_t
     smith = result.feedback[1234]
     assert smith.name == "smithbob_1234_50001_feedback.txt"
     text = smith.read_text()
-    assert text.splitlines()[0] == "Feedback on problem1 for Smith, Bob"  # canvas.FEEDBACK_HEADER, as the batch's
+    assert text.splitlines()[0] == "Feedback on problem1 for Smith, Bob"  # outputs.FEEDBACK_HEADER, as the batch's
     assert "Score: 20 / 20" in text and "(10 of the checks' 10 points, scaled)" in text
     for check in ("p1_ik", "p1_pd", "p1_ct", "p1_reach"):
         assert f"{check} message for smithbob_1234" in text
@@ -401,8 +402,8 @@ def test_feedback_files_carry_the_score_and_every_message_and_canvas_can_match_t
     for name in names:
         user_id, attachment_id = [p for p in name.split("_") if p.isdigit()][:2]
         submitted = next(e for e in ZIP_MEMBERS if e.startswith(name.removesuffix("_feedback.txt") + "_"))
-        assert canvas.parse_submission_name(submitted).user_id == int(user_id)
-        assert canvas.parse_submission_name(submitted).attachment_id == int(attachment_id)
+        assert submissions.parse_submission_name(submitted).user_id == int(user_id)
+        assert submissions.parse_submission_name(submitted).attachment_id == int(attachment_id)
 
 
 def test_a_regrade_into_the_same_folder_leaves_no_stale_feedback(tmp_path):
@@ -429,12 +430,12 @@ def test_a_regrade_keeps_the_earlier_import_and_retires_the_earlier_batch(tmp_pa
     notebook left the earlier batch's grades.csv and feedback beside the new, empty import."""
     out = tmp_path / "out"
     canvas.grade_canvas(FIXTURES / "submissions.zip", EXPORT, SPEC, out, grade=fake_grade([]))
-    first = {name: (out / name).read_bytes() for name in canvas.CANVAS_RESULTS}
+    first = {name: (out / name).read_bytes() for name in outputs.CANVAS_RESULTS}
     batch = out / "batch"  # what the real batch grader writes there (the fake one writes nothing)
     (batch / "feedback").mkdir(parents=True)
     (batch / "grades.csv").write_text("file,total\nsmithbob_1234.ipynb,20\n", encoding="utf-8")
     (batch / "batch.json").write_text('{"seed": 7}', encoding="utf-8")
-    (batch / "feedback" / "smithbob_1234.txt").write_text(canvas.FEEDBACK_HEADER + "Bob", encoding="utf-8")
+    (batch / "feedback" / "smithbob_1234.txt").write_text(outputs.FEEDBACK_HEADER + "Bob", encoding="utf-8")
     only_text = build_zip(tmp_path / "text.zip", {"smithbob_1234_text.html": b"<p>no notebook</p>"})
     result = canvas.grade_canvas(only_text, EXPORT, SPEC, out, grade=fake_grade([]))
     assert result.scores == {}
@@ -458,9 +459,12 @@ def test_semicolons_bom_crlf_and_decimal_commas_survive(tmp_path):
     result = canvas.grade_canvas(FIXTURES / "submissions.zip", export, SPEC, tmp_path / "out", grade=fake_grade([]))
     assert result.points_possible == 20 and result.scores == EXPECTED_CELLS
     out = (tmp_path / "out" / "gradebook_import.csv").read_bytes()
-    without_score = len(canvas.read_gradebook(export).student_rows) - len(EXPECTED_CELLS)
+    without_score = len(gradebook.read_gradebook(export).student_rows) - len(EXPECTED_CELLS)
     assert out.startswith("\ufeff".encode()) and out.count(b"\r\n") == len(rows) - without_score
-    before, after = canvas.read_gradebook(export), canvas.read_gradebook(tmp_path / "out" / "gradebook_import.csv")
+    before, after = (
+        gradebook.read_gradebook(export),
+        gradebook.read_gradebook(tmp_path / "out" / "gradebook_import.csv"),
+    )
     assert after.delimiter == ";" and after.rows[0] == [*before.rows[0][:5], COLUMN]
     assert after.rows[2] == [*before.rows[2][:5], "20,00"]  # the Points Possible row, decimal comma kept
     assert after.cell(1235, after.header.index(COLUMN)) == "15"
@@ -472,7 +476,7 @@ def test_no_scaling_when_the_column_is_worth_the_checks(tmp_path):
         EXPORT.read_text(encoding="utf-8").replace(",10.00,20.00,20.00,", ",10.00,10.00,20.00,"), encoding="utf-8"
     )
     result = canvas.grade_canvas(FIXTURES / "submissions.zip", export, SPEC, tmp_path / "out", grade=fake_grade([]))
-    assert result.scores == {u: canvas.format_score(float(s) / 2) for u, s in EXPECTED_CELLS.items()}
+    assert result.scores == {u: gradebook.format_score(float(s) / 2) for u, s in EXPECTED_CELLS.items()}
     assert not any("scaled" in n for n in result.notes)
 
 
@@ -523,7 +527,7 @@ def test_names_stored_without_the_utf8_flag_are_read_as_utf8_where_they_decode(t
             "oharasean_1236_50003_L├╢sung_problem1.ipynb",
             "smithbob_1234_50001_Lösung_problem1.ipynb",
         ]
-        assert [info.filename for info in canvas.safe_zip_entries(zf)] == [
+        assert [info.filename for info in submissions.safe_zip_entries(zf)] == [
             "garcíaana_LATE_1235_50002_problem1_reaching.ipynb",
             "oharasean_1236_50003_Lösung_problem1.ipynb",
             "smithbob_1234_50001_Lösung_problem1.ipynb",
@@ -537,7 +541,7 @@ def test_names_stored_without_the_utf8_flag_are_read_as_utf8_where_they_decode(t
     # the safety checks read the name used
     slip = build_legacy_zip(tmp_path / "slip.zip", {"../é_1234_1_p.ipynb".encode(): b"{}"})
     with zipfile.ZipFile(slip) as zf, pytest.raises(ValueError, match=r"named '\.\./é_1234_1_p\.ipynb'"):
-        canvas.safe_zip_entries(zf)
+        submissions.safe_zip_entries(zf)
 
 
 def test_a_name_flagged_utf8_that_is_not_says_the_zip_is_unreadable(tmp_path):
@@ -556,11 +560,11 @@ def test_zip_bombs_are_refused_or_left_ungraded(tmp_path, monkeypatch):
     big = build_zip(
         tmp_path / "big.zip", {"smithbob_1234_50001_problem1_reaching.ipynb": fake_notebook(p1_ik=3) + b" " * 200_000}
     )
-    monkeypatch.setattr(canvas, "MAX_ZIP_BYTES", 100_000)
+    monkeypatch.setattr(submissions, "MAX_ZIP_BYTES", 100_000)
     with pytest.raises(ValueError, match="would unpack to"):
         canvas.grade_canvas(big, EXPORT, SPEC, tmp_path / "out", grade=fake_grade([]))
-    monkeypatch.setattr(canvas, "MAX_ZIP_BYTES", 10**9)
-    monkeypatch.setattr(canvas, "MAX_NOTEBOOK_BYTES", 100_000)
+    monkeypatch.setattr(submissions, "MAX_ZIP_BYTES", 10**9)
+    monkeypatch.setattr(submissions, "MAX_NOTEBOOK_BYTES", 100_000)
     calls = []
     result = canvas.grade_canvas(big, EXPORT, SPEC, tmp_path / "out", grade=fake_grade(calls))
     assert calls == [] and result.scores == {}
@@ -570,13 +574,13 @@ def test_zip_bombs_are_refused_or_left_ungraded(tmp_path, monkeypatch):
 def test_a_lying_size_header_does_not_get_past_the_limit(tmp_path):
     zpath = build_zip(tmp_path / "liar.zip", {"a_1_2_b.ipynb": b"x" * 5000})
     with zipfile.ZipFile(zpath) as zf:
-        assert canvas.read_member(zf, zf.getinfo("a_1_2_b.ipynb"), limit=100) is None
-        assert len(canvas.read_member(zf, zf.getinfo("a_1_2_b.ipynb"), limit=5000)) == 5000
+        assert submissions.read_member(zf, zf.getinfo("a_1_2_b.ipynb"), limit=100) is None
+        assert len(submissions.read_member(zf, zf.getinfo("a_1_2_b.ipynb"), limit=5000)) == 5000
     with zipfile.ZipFile(zpath) as zf:
         info = zf.getinfo("a_1_2_b.ipynb")
         info.file_size = 10  # the header claims 10 bytes: reading stops there, and the check sum says so
         with pytest.raises(zipfile.BadZipFile):
-            canvas.read_member(zf, info, limit=100)
+            submissions.read_member(zf, info, limit=100)
 
 
 def test_a_damaged_notebook_is_reported_not_graded(tmp_path):
@@ -601,32 +605,32 @@ def test_a_csv_that_is_not_a_canvas_gradebook_says_so(tmp_path):
         match=r"not a Canvas gradebook export: its first row should begin with "
         r"Student, ID.*Export Entire Gradebook",
     ):
-        canvas.read_gradebook(other)
+        gradebook.read_gradebook(other)
     no_section = tmp_path / "nosection.csv"
     no_section.write_text("Student,ID,SIS Login ID,Problem 1 (4101)\n", encoding="utf-8")
     with pytest.raises(ValueError, match="no Section column"):
-        canvas.read_gradebook(no_section)
+        gradebook.read_gradebook(no_section)
     latin = tmp_path / "latin.csv"
     latin.write_bytes(EXPORT.read_text(encoding="utf-8").encode("latin-1"))
     with pytest.raises(ValueError, match="not UTF-8"):
-        canvas.read_gradebook(latin)
+        gradebook.read_gradebook(latin)
 
 
 def test_a_column_that_does_not_exist_lists_the_assignment_columns(tmp_path):
-    gradebook = canvas.read_gradebook(EXPORT)
+    book = gradebook.read_gradebook(EXPORT)
     with pytest.raises(ValueError) as err:
-        canvas.choose_column(gradebook, "problem1", "Problem 3 (4103)")
+        gradebook.choose_column(book, "problem1", "Problem 3 (4103)")
     message = str(err.value)
     assert "no assignment column 'Problem 3 (4103)'" in message
     for header in ("'Task 1 quiz (4100)'", "'Problem 1: Reaching (4101)'", "'Problem 2: Tracking (4102)'"):
         assert header in message
     assert "Current Score" not in message and "Notes" not in message
     # the full header, the assignment id and the title all name the column; so does the Problem alone
-    col = gradebook.header.index(COLUMN)
+    col = book.header.index(COLUMN)
     for name in (COLUMN, "4101", "Problem 1: Reaching", None):
-        assert canvas.choose_column(gradebook, "problem1", name) == col
+        assert gradebook.choose_column(book, "problem1", name) == col
     with pytest.raises(ValueError, match="no assignment column of the gradebook names 'problem7'"):
-        canvas.choose_column(gradebook, "problem7")
+        gradebook.choose_column(book, "problem7")
 
 
 def test_cli_reports_a_bad_column_in_plain_words(tmp_path, capsys):
@@ -662,7 +666,7 @@ def test_end_to_end_with_the_real_batch_grader(tmp_path):
     shutil.copy(EXPORT, tmp_path / "export.csv")
     result = canvas.grade_canvas(zpath, tmp_path / "export.csv", SPEC, tmp_path / "out", jobs=1)
     assert result.scores == {1234: "20"}, (tmp_path / "out" / "report.txt").read_text()
-    after = canvas.read_gradebook(tmp_path / "out" / "gradebook_import.csv")
+    after = gradebook.read_gradebook(tmp_path / "out" / "gradebook_import.csv")
     assert after.cell(1234, after.header.index(COLUMN)) == "20"
     assert list(after.student_rows) == [1234]  # Ana sent no notebook: left out of the import
     assert (tmp_path / "out" / "batch" / "grades.csv").is_file()
@@ -740,14 +744,14 @@ def test_two_columns_of_one_title_are_told_apart_by_their_ids(tmp_path):
     """Two columns titled the same made --column report that none matched; and "Problem 10"
     counted as naming problem1."""
     header = "Problem 2: Tracking (4102)"
-    gradebook = canvas.read_gradebook(_edited_export(tmp_path, header, "Problem 1: Reaching (4201)"))
+    book = gradebook.read_gradebook(_edited_export(tmp_path, header, "Problem 1: Reaching (4201)"))
     with pytest.raises(ValueError, match=r"2 assignment columns match --column 'Problem 1: Reaching'.*assignment id"):
-        canvas.choose_column(gradebook, "problem1", "Problem 1: Reaching")
-    assert gradebook.header[canvas.choose_column(gradebook, "problem1", "4201")] == "Problem 1: Reaching (4201)"
+        gradebook.choose_column(book, "problem1", "Problem 1: Reaching")
+    assert book.header[gradebook.choose_column(book, "problem1", "4201")] == "Problem 1: Reaching (4201)"
     with pytest.raises(ValueError, match="several assignment columns .* 'Problem 1: Reaching \\(4101\\)'"):
-        canvas.choose_column(gradebook, "problem1")
-    tenth = canvas.read_gradebook(_edited_export(tmp_path, header, "Problem 10: Extra (4110)"))
-    assert tenth.header[canvas.choose_column(tenth, "problem1")] == COLUMN
+        gradebook.choose_column(book, "problem1")
+    tenth = gradebook.read_gradebook(_edited_export(tmp_path, header, "Problem 10: Extra (4110)"))
+    assert tenth.header[gradebook.choose_column(tenth, "problem1")] == COLUMN
 
 
 @pytest.mark.parametrize("points", ["0.00", "", "n/a"])
@@ -764,7 +768,7 @@ def test_two_points_possible_rows_are_refused(tmp_path):
     (line,) = [x for x in EXPORT.read_text(encoding="utf-8").splitlines() if "Points Possible" in x]
     export = _edited_export(tmp_path, line, line.replace("20.00,20.00", "10.00,20.00") + "\n" + line)
     with pytest.raises(ValueError, match="both say Points Possible"):
-        canvas.read_gradebook(export)
+        gradebook.read_gradebook(export)
 
 
 def test_a_column_chosen_by_hand_that_does_not_name_the_problem_is_flagged_first(tmp_path):
@@ -780,5 +784,5 @@ def test_a_column_chosen_by_hand_that_does_not_name_the_problem_is_flagged_first
 
 def test_a_title_of_the_problem_alone_is_not_flagged():
     """The id in parentheses is not part of the title: "Problem 1 (4101)" names problem1."""
-    assert canvas.column_warning("Problem 1 (4101)", "problem1") == ""
-    assert canvas.column_warning("Problem 10 (4110)", "problem1").startswith("Check first")
+    assert gradebook.column_warning("Problem 1 (4101)", "problem1") == ""
+    assert gradebook.column_warning("Problem 10 (4110)", "problem1").startswith("Check first")

@@ -18,7 +18,7 @@ import nbformat
 import pytest
 from hostile.build import unusual_problem2
 
-from labsupport.instructor import batch, canvas, compare, similarity
+from labsupport.instructor import batch, canvas, compare, similarity, submissions
 from labsupport.instructor.assign import load_spec
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -351,7 +351,7 @@ def test_the_canvas_command_takes_compare_with_to_the_batch(tmp_path, capsys, mo
         earlier.mkdir()
         (earlier / "last_year.ipynb").write_bytes(UNUSUAL)
     seen = {}
-    monkeypatch.setattr(batch, "run_batch", lambda folder, spec_path, out, **options: seen.update(options) or [])
+    monkeypatch.setattr(canvas, "run_batch", lambda folder, spec_path, out, **options: seen.update(options) or [])
     canvas.main([*argv, str(earlier)])
     assert seen["compare_with"] == [earlier]
 
@@ -365,7 +365,7 @@ def test_a_huge_earlier_notebook_is_held_without_its_outputs(tmp_path, monkeypat
     earlier.mkdir()
     (earlier / "big.ipynb").write_bytes(nbformat.writes(nb).encode())
     zipped = canvas_zip(tmp_path / "2024.zip", {"smithbob_101_5001_problem1_reaching.ipynb": nbformat.writes(nb)})
-    monkeypatch.setattr(canvas, "STRIP_OUTPUTS_BYTES", 40_000)
+    monkeypatch.setattr(submissions, "STRIP_OUTPUTS_BYTES", 40_000)
     held = batch.earlier_notebooks([earlier, zipped], SPEC1)
     assert set(held) == {"2025/big.ipynb", "2024.zip/smithbob_101_5001_problem1_reaching.ipynb"}
     for data in held.values():

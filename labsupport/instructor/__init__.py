@@ -14,5 +14,8 @@ submission's reach: run it from a checkout of the course repository.
 ``compare``         the same shared-code report for a folder, without grading it
 ``rubric``          a Problem's grading rubric (points, scoring, each named mistake's credit)
 ``canvas``          Canvas "Download Submissions" zip + gradebook export → graded gradebook to import
+``submissions``     a submissions zip read safely: Canvas's file names, each student's notebook
+``gradebook``       a Canvas gradebook export read, and written back with one column filled
+``outputs``         what the graders write: texts made safe for a file, earlier runs kept
 ==================  ===================================================================
 """

@@ -83,6 +83,13 @@ def problem_arguments(parser: argparse.ArgumentParser) -> None:
     which.add_argument("--spec", type=Path, help="an autograder spec written by labsupport.instructor.assign")
 
 
+def seed_argument(text: str) -> int:
+    """``--seed``'s value: a whole number, 0 or more (the test states' generator takes no other)."""
+    if not (text.isascii() and text.isdigit()):
+        raise argparse.ArgumentTypeError(f"give a whole number, 0 or more (as batch.json records it), not {text!r}")
+    return int(text)
+
+
 def chosen_spec(parser: argparse.ArgumentParser, args: argparse.Namespace) -> Path:
     """The spec file that ``--problem`` or ``--spec`` named; where there is none, stop with the
     problems there are, or with what to give instead."""

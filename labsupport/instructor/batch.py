@@ -67,24 +67,18 @@ import mujoco
 import labsupport
 from labsupport.grading import registry
 from labsupport.instructor import isolation, judge, similarity
-from labsupport.instructor.assign import chosen_spec, load_spec, problem_arguments
-from labsupport.instructor.canvas import (
+from labsupport.instructor.assign import chosen_spec, load_spec, problem_arguments, seed_argument
+from labsupport.instructor.outputs import (
     BATCH_RESULTS,
     FEEDBACK_HEADER,
     clean_text,
     csv_cell,
-    held,
-    is_os_metadata,
-    is_zip,
     keep_previous,
     keep_private,
-    open_zip,
     remove_stale_feedback,
-    safe_zip_entries,
-    seed_argument,
-    zip_notebooks,
 )
 from labsupport.instructor.rubric import canvas_rubric_csv, rubric
+from labsupport.instructor.submissions import held, is_os_metadata, is_zip, open_zip, safe_zip_entries, zip_notebooks
 
 #: The note every row carries when the batch ran without a sandbox.
 UNSAFE_NOTE = "graded WITHOUT a sandbox (--unsafe-no-sandbox): only for submissions you trust"
@@ -303,14 +297,14 @@ def shared_code_reports(
 
 def read_notebook(path: Path) -> bytes:
     """The notebook at ``path`` as the grader holds it
-    (:func:`labsupport.instructor.canvas.held`)."""
+    (:func:`labsupport.instructor.submissions.held`)."""
     return held(path.read_bytes())
 
 
 def earlier_notebooks(folders: list[Path], spec: dict) -> dict[str, bytes]:
     """The notebooks at the top of each of ``folders``, or in each zip among them (a Canvas
     download: each student's notebook for the Problem of ``spec``,
-    :func:`labsupport.instructor.canvas.zip_notebooks`), by ``<folder or zip name>/<file name>``
+    :func:`labsupport.instructor.submissions.zip_notebooks`), by ``<folder or zip name>/<file name>``
     (the path as given where two share a name), for the shared-code report; one that cannot be
     read is named on stderr and left out."""
     notebooks = {}
@@ -382,7 +376,7 @@ def grades_csv(spec: dict, rows: list[dict], seed: int) -> str:
 
 def feedback_names(files: list[str]) -> dict[str, str]:
     """Each submission's feedback file name, ``<stem>.txt``, with ``_`` for any character that
-    :func:`~labsupport.instructor.canvas.clean_text` would not write as it is (a line break, a
+    :func:`~labsupport.instructor.outputs.clean_text` would not write as it is (a line break, a
     control character); a stem already taken in any case (``a.ipynb`` and ``a.IPYNB``) gets
     ``<stem>-2.txt``, and so on: no feedback overwrites another."""
     names, taken = {}, set()
@@ -401,7 +395,7 @@ def _write_results(out: Path, spec: dict, rows: list[dict], record: dict, shared
     rubric (``rubric.md``, and ``rubric_canvas.csv`` for Canvas: :mod:`labsupport.instructor.rubric`)
     and the ``shared`` code reports (:mod:`labsupport.instructor.similarity`) into ``out``; then
     remove the feedback files of an earlier batch
-    (:func:`labsupport.instructor.canvas.remove_stale_feedback`).
+    (:func:`labsupport.instructor.outputs.remove_stale_feedback`).
     An earlier batch's ``grades.csv``, ``batch.json`` (its seed) and code reports move to
     ``out/previous/`` first, replacing what an even earlier one left there."""
     out = Path(out)

@@ -23,649 +23,62 @@ Gradebook's *Export* gives, grades each student's notebook with
 
 A regrade into the same ``OUT`` first moves the earlier run's import, report and zip into
 ``OUT/previous/``, and the earlier batch's results into ``OUT/batch/previous/``
-(:func:`keep_previous`).
+(:func:`labsupport.instructor.outputs.keep_previous`).
 
-What Canvas produces, and where each fact comes from
-----------------------------------------------------
-
-Canvas's own source (github.com/instructure/canvas-lms) is the reference; the community
-guides say the same in fewer words.
-
-*Download Submissions* zip (``lib/content_zipper.rb``: ``get_filename``,
-``add_upload_submission``, ``sanitize_user_name``, ``sanitize_file_name``):
-
-* an uploaded file is stored at the top of the zip as
-  ``<name>_[LATE_]<user id>_<attachment id>_<file name>``;
-* ``<name>`` is the student's sortable name ("Last, First") in lower case with every character
-  that is not a letter, digit or underscore removed ("Smith, Bob" gives ``smithbob``);
-* ``LATE`` is there when Canvas counts the submission late;
-* the second number is the id of the uploaded file (the attachment), not of the submission;
-* ``<file name>`` is the file's display name (``/ \\ : * ? " < > |`` replaced by ``_``);
-* with anonymous grading the name is left out and the user id becomes ``anon_<anonymous id>``:
-  such files cannot be matched to a gradebook row and are reported;
-* a text entry is ``<name>_[LATE_]<user id>_text.html``, a URL ``..._link.html``;
-* only the files of each student's latest attempt are zipped;
-* for a group assignment graded as a group, one member stands for the group and the name is
-  the group's name (``representatives`` in ``app/models/assignment.rb``).
-
-Resubmissions (``app/models/attachment.rb``: ``handle_duplicates``,
-``make_unique_filename``): a file uploaded into a student's submissions folder that already
-holds a file of the same name is renamed ``<stem>-1<ext>``, then ``-2``... up to ``-7``, after
-which a random UUID takes the number's place (older versions kept counting); so
-``problem1_reaching-2.ipynb`` is the third upload of that name (students notice it too:
-https://github.com/IIC1253/IIC1253-2025-1/issues/34). Attachment ids grow with each upload, so
-the highest one is a student's latest file.
-
-*Re-upload Submissions* (``infer_comment_context_from_filename`` in ``app/models/assignment.rb``)
-splits each file name on ``_``, takes the first two all-digit parts as the user id and the
-attachment id, and attaches the file as a comment to that student's submission; the feedback
-files are named with the submitted file's own prefix, so Canvas finds them.
-
-Gradebook export (``lib/gradebook_exporter.rb``) and import (``lib/gradebook_importer.rb``):
-
-* columns ``Student`` (or ``LastName``, ``FirstName``), ``ID``, ``SIS User ID`` (optional),
-  ``SIS Login ID``, ``Integration ID`` and ``Root Account`` (optional), ``Section``, custom
-  columns, one column per assignment titled ``<title> (<assignment id>)``, then read-only totals
-  (``Current Score``, ``Unposted Current Score``, ``Final Score``, ``Current Points``, ...);
-* an optional row of ``Manual Posting`` markers, then the row whose first cell is
-  ``    Points Possible`` (with ``(read only)`` under computed columns), then one row per student;
-* the import requires a first row starting ``Student``, ``ID`` (or ``LastName``, ``FirstName``,
-  ``ID``) whose student columns end with ``Section``; it finds each student by ``ID`` first,
-  then SIS ids, then name; it skips the Points Possible and Manual Posting rows and ignores
-  read-only columns; it updates only the columns the file holds; it reads ``;`` or ``,`` as the
-  separator and a decimal comma or point;
-* it changes only the students the file holds, so a student with no new score (no submission,
-  a timed-out or failed grading, an excused cell) is left out of the file and keeps what Canvas
-  holds, even a grade entered after the export (never a 0, which would be a grade); the Points
-  Possible row is kept as exported, and a score is scaled to the column's points possible
-  when the Problem's checks add up to a different maximum.
-
-Community guides: https://community.canvaslms.com/t5/Instructor-Guide/How-do-I-import-grades-in-the-Gradebook/ta-p/807
-(importing), and on the export's read-only columns, which the import ignores,
-https://ts.vcu.edu/askit/teaching-and-learning/canvas/faculty/grading-faculty/gradebook-action-menu-faculty/.
+What Canvas produces, and where each fact comes from (Canvas's own source), is told where it is
+read: :mod:`labsupport.instructor.submissions` for the zip and the re-uploaded feedback files,
+:mod:`labsupport.instructor.gradebook` for the export and the import.
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
-import io
-import json
-import os
 import re
 import shutil
 import tempfile
 import unicodedata
 import zipfile
-import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path, PurePosixPath
+from pathlib import Path
 
-from labsupport.instructor.assign import chosen_spec, load_spec, problem_arguments
-
-#: Largest notebook read from the zip [bytes]: reading one takes that much memory, and no
-#: student's notebook comes near it; a bigger file is reported, not graded.
-MAX_NOTEBOOK_BYTES = 2**30
-#: Above this size [bytes] a notebook is graded without its outputs and attachments, which the
-#: grader never reads (it runs the code cells' source): the same grade, in less memory.
-STRIP_OUTPUTS_BYTES = 64 * 2**20
-#: Largest total the zip may declare once uncompressed [bytes]; a bigger zip is refused.
-MAX_ZIP_BYTES = 4 * 2**30
-#: Most entries a zip may hold.
-MAX_ZIP_ENTRIES = 20_000
+from labsupport.instructor.assign import chosen_spec, load_spec, problem_arguments, seed_argument
+from labsupport.instructor.batch import check_compare_with, compare_with_argument, run_batch
+from labsupport.instructor.gradebook import (
+    Gradebook,
+    choose_column,
+    column_warning,
+    decimal_point,
+    fill_column,
+    format_score,
+    read_gradebook,
+    scaled_score,
+)
+from labsupport.instructor.outputs import (
+    BATCH_RESULTS,
+    CANVAS_RESULTS,
+    FEEDBACK_HEADER,
+    clean_text,
+    keep_previous,
+    keep_private,
+    remove_stale_feedback,
+)
+from labsupport.instructor.submissions import (
+    SubmissionFile,
+    choose_notebook,
+    is_os_metadata,
+    notebook_stem,
+    open_zip,
+    other_problem,
+    parse_submission_name,
+    plain,
+    read_notebook_entry,
+    safe_zip_entries,
+)
 
 #: Batch statuses whose scores go into the gradebook; any other status (timed out, grader
 #: error, or one this module does not know) leaves the student out of the import, and is reported.
 SCORED_STATUSES = ("graded", "unreadable")
-#: Longest message or note written into a feedback file, a CSV cell or a report [characters].
-MAX_MESSAGE_CHARS = 2000
-#: Bidirectional overrides and isolates: they reorder what a reader sees of the text around them.
-_BIDI_CONTROLS = frozenset("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
-#: How every feedback file either grader writes begins (how a stale one is recognised).
-FEEDBACK_HEADER = "Feedback on "
-#: General-purpose flag bit 11 of a zip entry: its name is stored in UTF-8.
-_UTF8_NAME_FLAG = 0x800
-
-_UPLOAD = re.compile(
-    r"^(?:(?P<name>.*?)_)??(?:(?P<late>LATE)_)?(?P<user>\d+|anon_[A-Za-z0-9]+)_(?P<attachment>\d+)_(?P<original>.+)$"
-)
-_TEXT_OR_URL = re.compile(
-    r"^(?:(?P<name>.*?)_)??(?:(?P<late>LATE)_)?(?P<user>\d+|anon_[A-Za-z0-9]+)_(?P<kind>text|link)\.html$"
-)
-# Canvas's make_unique_filename: "<stem>-<n><ext>", ext as Canvas cuts it ("a.tar.gz" -> "a-1.tar.gz").
-# After -7, today's Canvas appends a random UUID instead of a number (older versions kept counting).
-_RESUBMISSION = re.compile(
-    r"^(?P<stem>.+)-(?P<n>\d+|[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12})"
-    r"(?P<ext>(?:\.[A-Za-z][A-Za-z0-9]*)*(?:\.[A-Za-z0-9]*))$"
-)
-_ASSIGNMENT_HEADER = re.compile(r"^(?P<title>.*)\s\((?P<id>\d+)\)$")
-_COMPUTED_HEADER = re.compile(
-    "Current Score|Current Points|Current Grade|Final Score|Final Points|Final Grade|Override Score"
-    "|Override Grade|Override Status"
-)
-_POSTING_CELL = re.compile(r"^\s*(Muted|Manual Posting.*)?\s*$", re.IGNORECASE)
-
-
-# --- what both graders write (kept here: labsupport.instructor.batch imports this module) ---------
-
-
-def clean_text(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
-    """``text`` made safe to write into a feedback file, a CSV cell or a report: one line, no
-    control characters, at most ``limit`` characters.
-
-    Student code writes into the messages (an exception's text, a printed string): a line break
-    would let it add a line of its own ("Score: 10 / 10"), a NUL byte or a terminal escape would
-    garble the file or the terminal showing it, and a lone surrogate (``"\\ud800"`` in a
-    notebook's JSON) would stop every UTF-8 file it went into from being written, and with it
-    the whole class's grades. Tabs and line breaks become spaces; any other control character
-    (Unicode category Cc, and the bidirectional overrides) and any surrogate (Cs) becomes a
-    visible escape such as ``\\x1b``; a longer text is cut and ends in "…".
-    """
-    text = str(text)
-    shown = "".join(_visible(c) for c in text[:limit])
-    if len(text) > limit or len(shown) > limit:
-        return shown[: limit - 1] + "…"
-    return shown
-
-
-#: What a spreadsheet reads as the start of a formula when a cell begins with it.
-_FORMULA_STARTS = ("=", "+", "-", "@")
-
-
-def csv_cell(text: str) -> str:
-    """``text`` as :func:`clean_text` makes it, and written so that a spreadsheet shows it as text:
-    one that begins as a formula does (``=HYPERLINK(...)``, ``+1``, ``@SUM``) gets a leading ``'``.
-    For the cells of a grader's CSV that a student's file name fills."""
-    text = clean_text(text)
-    return "'" + text if text.startswith(_FORMULA_STARTS) else text
-
-
-def _visible(c: str) -> str:
-    """One character as :func:`clean_text` writes it."""
-    if c in "\t\n\r\v\f\x1c\x1d\x1e\x85\u2028\u2029":  # every character str.splitlines breaks at, and tab
-        return " "
-    if unicodedata.category(c) in ("Cc", "Cs") or c in _BIDI_CONTROLS:
-        return ascii(c)[1:-1]
-    return c
-
-
-def seed_argument(text: str) -> int:
-    """``--seed``'s value: a whole number, 0 or more (the test states' generator takes no other)."""
-    if not (text.isascii() and text.isdigit()):
-        raise argparse.ArgumentTypeError(f"give a whole number, 0 or more (as batch.json records it), not {text!r}")
-    return int(text)
-
-
-def remove_stale_feedback(folder: Path, keep: set[str]) -> None:
-    """Delete the feedback files an earlier run left in ``folder`` (a regrade into the same
-    ``--out``), so that it matches what was just graded; only ``*.txt`` files a grader wrote (they
-    begin with :data:`FEEDBACK_HEADER`) are touched. Names are compared in any case, as a
-    case-insensitive file system would."""
-    keep = {name.casefold() for name in keep}
-    header = FEEDBACK_HEADER.encode()
-    for path in folder.iterdir():
-        if path.name.casefold() in keep or not path.name.endswith(".txt") or path.is_symlink() or not path.is_file():
-            continue
-        try:
-            with open(path, "rb") as f:
-                stale = f.read(len(header)) == header
-            if stale:
-                path.unlink()
-        except OSError:  # not this grader's to remove
-            continue
-
-
-#: The files a batch writes that a regrade into the same folder moves into ``previous/``.
-BATCH_RESULTS = ("grades.csv", "batch.json", "similarity.csv", "similarity.html")
-#: The same for a Canvas run: the import, the report and the feedback zip.
-CANVAS_RESULTS = ("gradebook_import.csv", "report.txt", "feedback_upload.zip")
-
-
-def keep_previous(folder: Path, names: tuple[str, ...]) -> None:
-    """Move the files ``names`` that an earlier run wrote in ``folder`` into ``folder/previous/``,
-    replacing what an even earlier run left there: a regrade into the same folder loses nothing,
-    and leaves nothing of the earlier run beside its own results."""
-    earlier = [folder / name for name in names if (folder / name).is_file()]
-    if not earlier:
-        return
-    previous = folder / "previous"
-    previous.mkdir(exist_ok=True)
-    for path in earlier:
-        os.replace(path, previous / path.name)
-    print(f"the earlier run's {', '.join(p.name for p in earlier)} are now in {previous}")
-
-
-def keep_private() -> None:
-    """Make the files and folders this process creates from now on its owner's alone (umask 077):
-    the outputs hold students' grades."""
-    os.umask(0o077)
-
-
-# --- the zip -------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class SubmissionFile:
-    """One file of a "Download Submissions" zip, its name taken apart as Canvas built it."""
-
-    entry: str  #: the entry's name in the zip
-    name: str  #: sortable name, lower case, word characters only ("" when anonymous)
-    user_id: int | None  #: Canvas user id (None when anonymous)
-    anonymous_id: str | None  #: Canvas anonymous id under anonymous grading
-    late: bool  #: Canvas marked the submission LATE
-    attachment_id: int | None  #: id of the uploaded file (None for text entries and URLs)
-    original: str  #: the file's display name, resubmission suffix included
-    resubmission: int  #: n of Canvas's "-n" duplicate-name suffix (0 when absent, 8 for its UUID suffix)
-    kind: str = "upload"  #: "upload", "text" or "link"
-
-    @property
-    def base_name(self) -> str:
-        """The display name without the resubmission suffix: ``problem1-2.ipynb`` -> ``problem1.ipynb``."""
-        m = _RESUBMISSION.match(self.original)
-        return m["stem"] + m["ext"] if m and self.resubmission else self.original
-
-    @property
-    def prefix(self) -> str:
-        """The entry name up to the attachment id: what Canvas reads back from a re-uploaded file."""
-        base = PurePosixPath(self.entry.replace("\\", "/")).name  # a folder in the zip is not part of it
-        return base[: len(base) - len(self.original) - 1] if self.kind == "upload" else ""
-
-    @property
-    def is_notebook(self) -> bool:
-        return self.kind == "upload" and self.original.lower().endswith(".ipynb")
-
-
-#: Files an operating system adds when it zips a folder: never a student's work.
-_OS_FILES = (".DS_Store", "Thumbs.db", "desktop.ini")
-
-
-def is_os_metadata(entry: str) -> bool:
-    """Whether a zip entry is a file the operating system added: macOS's ``__MACOSX/`` folder and
-    ``._`` copies (AppleDouble resource forks, not notebooks), ``.DS_Store``, Windows'
-    ``Thumbs.db``. A re-zipped download holds them; they are skipped, never graded."""
-    parts = entry.replace("\\", "/").split("/")
-    return "__MACOSX" in parts or parts[-1].startswith("._") or parts[-1] in _OS_FILES
-
-
-def parse_submission_name(entry: str) -> SubmissionFile | None:
-    """Take a zip entry's name apart: ``<name>_[LATE_]<user id>_<attachment id>_<file name>``.
-
-    Returns None when the name is not one Canvas writes (a file added to the zip by hand).
-    """
-    base = PurePosixPath(entry.replace("\\", "/")).name
-    m = _UPLOAD.match(base)
-    kind = "upload"
-    if m is None:
-        m = _TEXT_OR_URL.match(base)
-        if m is None:
-            return None
-        kind = m["kind"]
-    user = m["user"]
-    anonymous = user.startswith("anon_")
-    original = m["original"] if kind == "upload" else base
-    suffix = _RESUBMISSION.match(original) if kind == "upload" else None
-    return SubmissionFile(
-        entry=entry,
-        name=m["name"] or "",
-        user_id=None if anonymous else int(user),
-        anonymous_id=user[len("anon_") :] if anonymous else None,
-        late=m["late"] is not None,
-        attachment_id=int(m["attachment"]) if kind == "upload" else None,
-        original=original,
-        resubmission=(int(suffix["n"]) if suffix["n"].isdigit() else 8) if suffix else 0,
-        kind=kind,
-    )
-
-
-def entry_name(info: zipfile.ZipInfo) -> str:
-    """The entry's name as its writer meant it.
-
-    A name stored without the UTF-8 flag (general-purpose bit 11; Info-ZIP and rubyzip write
-    such zips) is read by :mod:`zipfile` as code page 437, which garbles a UTF-8 name
-    (``garcíaana`` comes out ``garc├¡aana``); such a name is read as UTF-8 where its bytes are
-    UTF-8, and kept as code page 437 otherwise.
-    """
-    if info.flag_bits & _UTF8_NAME_FLAG:
-        return info.filename
-    try:
-        return info.filename.encode("cp437").decode("utf-8")
-    except UnicodeError:
-        return info.filename
-
-
-def safe_zip_entries(zf: zipfile.ZipFile) -> list[zipfile.ZipInfo]:
-    """The zip's file entries, named by :func:`entry_name`, after refusing a zip that could write
-    outside its folder or explode.
-
-    Refused: more than :data:`MAX_ZIP_ENTRIES` entries, an absolute name, a drive letter, a
-    ``..`` part, a NUL byte, a symbolic link, or a declared total over :data:`MAX_ZIP_BYTES`;
-    the name checked is the one used. (Renaming an entry is safe: :meth:`zipfile.ZipFile.open`
-    compares the file's own header with ``orig_filename``, which stays as read.)
-    """
-    infos = zf.infolist()
-    if len(infos) > MAX_ZIP_ENTRIES:
-        raise ValueError(f"the zip holds {len(infos)} entries, more than {MAX_ZIP_ENTRIES}: not a Canvas download")
-    for info in infos:
-        name = info.filename = entry_name(info)
-        parts = name.replace("\\", "/").split("/")
-        if name.startswith(("/", "\\")) or re.match(r"^[A-Za-z]:", name) or ".." in parts or "\x00" in name:
-            raise ValueError(
-                f"the zip holds an entry named {name!r}, which points outside the folder it is unpacked in; "
-                "Canvas never writes such names: download the submissions from Canvas again"
-            )
-        if (info.external_attr >> 16) & 0o170000 == 0o120000:
-            raise ValueError(f"the zip holds a symbolic link {name!r}; Canvas never does: download it again")
-    total = sum(info.file_size for info in infos)
-    if total > MAX_ZIP_BYTES:
-        raise ValueError(
-            f"the zip would unpack to {total / 2**30:.1f} GiB, more than {MAX_ZIP_BYTES / 2**30:.0f} GiB: refused"
-        )
-    return [info for info in infos if not info.is_dir()]
-
-
-def read_notebook_entry(zf: zipfile.ZipFile, info: zipfile.ZipInfo) -> tuple[bytes | None, str | None]:
-    """The notebook in the entry, :func:`held` (and ``None``), or ``None`` and why it cannot be
-    read: damaged in the zip, or over :data:`MAX_NOTEBOOK_BYTES`."""
-    try:
-        data = read_member(zf, info)
-    except (zipfile.BadZipFile, zlib.error, EOFError) as err:
-        return None, f"damaged in the zip ({err})"
-    if data is None:
-        return None, f"larger than the {MAX_NOTEBOOK_BYTES:,} bytes a notebook may have"
-    return held(data), None
-
-
-def read_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, limit: int | None = None) -> bytes | None:
-    """The entry's bytes, or None when it holds more than ``limit`` bytes (default :data:`MAX_NOTEBOOK_BYTES`).
-
-    Never reads more than ``limit + 1`` bytes, whatever the entry's header says; an entry whose
-    content disagrees with its header raises :class:`zipfile.BadZipFile`.
-    """
-    limit = MAX_NOTEBOOK_BYTES if limit is None else limit
-    if info.file_size > limit:
-        return None
-    with zf.open(info) as f:
-        data = f.read(limit + 1)
-    return None if len(data) > limit else data
-
-
-def held(data: bytes) -> bytes:
-    """A notebook's bytes as the graders hold them in memory until graded and compared: without
-    its outputs (:func:`without_outputs`) when over :data:`STRIP_OUTPUTS_BYTES`, as they are
-    otherwise; only the code is read."""
-    return without_outputs(data) if len(data) > STRIP_OUTPUTS_BYTES else data
-
-
-def without_outputs(data: bytes) -> bytes:
-    """The notebook without its cells' outputs and attachments, which the grader never reads.
-
-    The cells stay where they are, with their source, so the notebook grades as it is. A file
-    that is not a notebook is returned unchanged, for the grader to say why it cannot read it.
-    """
-    try:
-        nb = json.loads(data.decode("utf-8"))
-        if not isinstance(nb, dict) or not isinstance(nb.get("cells"), list):
-            return data
-        for cell in nb["cells"]:
-            if isinstance(cell, dict):
-                cell.pop("attachments", None)
-                if "outputs" in cell:
-                    cell["outputs"] = []
-        return json.dumps(nb).encode("utf-8")
-    except (ValueError, RecursionError):  # not UTF-8, not JSON, or nested too deep
-        return data
-
-
-def notebook_stem(spec: dict) -> str:
-    """The student notebook's name without extension, e.g. ``problem1_reaching``."""
-    return PurePosixPath(spec.get("student") or spec["problem"]).stem
-
-
-def _plain(text: str) -> str:
-    """Lower case, letters and digits only: the form in which file and column names are compared."""
-    return "".join(c for c in unicodedata.normalize("NFKC", text).lower() if c.isalnum())
-
-
-def choose_notebook(files: list[SubmissionFile], stem: str, problem: str) -> SubmissionFile | None:
-    """The file of one student to grade: a notebook named after the Problem, latest upload first.
-
-    Preference: a notebook whose name holds the Problem's notebook name (``problem1_reaching``),
-    else one whose name holds the Problem's name (``problem1``), else any notebook; among
-    equals, the highest attachment id (the latest upload, whatever Canvas's suffix says).
-    """
-    notebooks = [f for f in files if f.is_notebook]
-    for key in (_plain(stem), _plain(problem), ""):
-        named = [f for f in notebooks if key in _plain(f.base_name)]
-        if named:
-            return max(named, key=lambda f: f.attachment_id or 0)
-    return None
-
-
-# --- the gradebook -------------------------------------------------------------------------------
-
-
-@dataclass
-class Gradebook:
-    """A Canvas gradebook export, kept record by record so that a rewrite changes only one column."""
-
-    records: list[str]  #: raw text of each CSV record, its line ending included
-    rows: list[list[str]]  #: the parsed cells of each record
-    delimiter: str
-    bom: str  #: "\ufeff" when the export began with a byte-order mark
-    id_column: int  #: index of the ``ID`` column
-    name_columns: tuple[int, ...]  #: ``Student``, or ``LastName``, ``FirstName``
-    first_assignment_column: int  #: index just after ``Section``
-    points_row: int | None  #: index of the Points Possible row
-    student_rows: dict[int, int]  #: user id -> row index
-
-    @property
-    def header(self) -> list[str]:
-        return self.rows[0]
-
-    def assignment_columns(self) -> list[int]:
-        """Indices of the assignment columns: titled ``<title> (<id>)``, not read-only, not a total."""
-        points = self.rows[self.points_row] if self.points_row is not None else []
-        return [
-            i
-            for i, h in enumerate(self.header)
-            if i >= self.first_assignment_column
-            and _ASSIGNMENT_HEADER.match(h)
-            and not _COMPUTED_HEADER.search(h)
-            and "read only" not in (points[i] if i < len(points) else "")
-        ]
-
-    def student_name(self, user_id: int) -> str:
-        row = self.rows[self.student_rows[user_id]]
-        return ", ".join(row[i] for i in self.name_columns if i < len(row) and row[i])
-
-    def cell(self, user_id: int, column: int) -> str:
-        row = self.rows[self.student_rows[user_id]]
-        return row[column] if column < len(row) else ""
-
-    def points_possible(self, column: int) -> float | None:
-        """The column's points possible from the Points Possible row (None without that row)."""
-        if self.points_row is None:
-            return None
-        text = self.rows[self.points_row][column].strip()
-        try:
-            points = float(_decimal_point(text))
-        except ValueError:
-            points = float("nan")
-        if not points > 0:  # blank, text, 0 or negative: every score would be scaled to nothing
-            raise ValueError(
-                f"the Points Possible row says {text!r} under {self.header[column]!r}, not a positive number: "
-                "set the assignment's points in Canvas and export the gradebook again"
-            )
-        return points
-
-
-def _decimal_point(text: str) -> str:
-    """``"12,5"`` -> ``"12.5"``, as Canvas's importer reads a decimal comma."""
-    return text.replace(",", ".") if "." not in text else text.replace(",", "")
-
-
-def split_records(text: str) -> list[str]:
-    """Cut CSV text into records, each with its line ending; a newline inside quotes stays inside."""
-    records, start, quoted = [], 0, False
-    for i, c in enumerate(text):
-        if c == '"':
-            quoted = not quoted
-        elif c == "\n" and not quoted:
-            records.append(text[start : i + 1])
-            start = i + 1
-    if start < len(text):
-        records.append(text[start:])
-    return records
-
-
-def split_fields(record: str, delimiter: str) -> tuple[list[str], str]:
-    """A record's raw field texts (quotes kept) and its line ending."""
-    body = record.rstrip("\r\n")
-    fields, start, quoted = [], 0, False
-    for i, c in enumerate(body):
-        if c == '"':
-            quoted = not quoted
-        elif c == delimiter and not quoted:
-            fields.append(body[start:i])
-            start = i + 1
-    fields.append(body[start:])
-    return fields, record[len(body) :]
-
-
-def detect_delimiter(lines: list[str]) -> str:
-    """``;`` or ``,``, decided as Canvas's importer does: the one that splits the first lines into
-    the same, larger number of fields."""
-    counts = {}
-    for sep in (";", ","):
-        sizes = {len(next(csv.reader([line], delimiter=sep), [])) for line in lines}
-        counts[sep] = sizes.pop() if len(sizes) == 1 else 0
-    return ";" if counts[";"] > counts[","] else ","
-
-
-def _not_a_gradebook(path: Path, why: str) -> ValueError:
-    return ValueError(
-        f"{path} is not a Canvas gradebook export: {why}. Export it from Canvas: Grades -> Export -> "
-        "Export Entire Gradebook, and pass that CSV unchanged"
-    )
-
-
-def read_gradebook(path: Path) -> Gradebook:
-    """Read a Canvas gradebook export (CSV), checking its header as Canvas's importer does."""
-    path = Path(path)
-    raw = path.read_bytes()
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError:
-        raise _not_a_gradebook(path, "it is not UTF-8 text (re-saved by a spreadsheet?)") from None
-    bom = "\ufeff" if text.startswith("\ufeff") else ""
-    records = split_records(text[len(bom) :])
-    if not records:
-        raise _not_a_gradebook(path, "it is empty")
-    delimiter = detect_delimiter([r.rstrip("\r\n") for r in records[:3]])
-    rows = [next(csv.reader(io.StringIO(r), delimiter=delimiter), []) for r in records]
-    header = [h.strip() for h in rows[0]]
-    if len(header) > 4 and "LastName" in header[0] and "FirstName" in header[1] and "ID" in header[2]:
-        name_columns, id_column = (0, 1), 2
-    elif len(header) > 3 and "Student" in header[0] and "ID" in header[1]:
-        name_columns, id_column = (0,), 1
-    else:
-        raise _not_a_gradebook(path, f"its first row should begin with Student, ID, but begins with {header[:3]}")
-    if "Section" not in header:
-        raise _not_a_gradebook(path, "its first row has no Section column")
-    points_row, students = None, {}
-    for r, row in enumerate(rows[1:], start=1):
-        first = row[0] if row else ""
-        if "Points Possible" in first:
-            if points_row is not None:  # which one would Canvas read? neither guess is safe
-                raise _not_a_gradebook(path, f"rows {points_row + 1} and {r + 1} both say Points Possible")
-            points_row = r
-        elif all(_POSTING_CELL.match(c) for c in row if c):
-            continue  # the Manual Posting row, or a blank line
-        else:
-            cell = row[id_column].strip() if id_column < len(row) else ""
-            if not cell.isdigit():
-                raise _not_a_gradebook(path, f"row {r + 1} has {cell!r} in the ID column, not a Canvas user id")
-            students[int(cell)] = r
-    return Gradebook(
-        records, rows, delimiter, bom, id_column, name_columns, header.index("Section") + 1, points_row, students
-    )
-
-
-def choose_column(gradebook: Gradebook, problem: str, column: str | None = None) -> int:
-    """The index of the Problem's assignment column.
-
-    ``column`` may be the full header (``"Problem 1 (12345)"``), the assignment id or the title;
-    without it, the one assignment column whose title names the Problem (``problem1``).
-    """
-    candidates = gradebook.assignment_columns()
-    header = gradebook.header
-    listing = "; ".join(repr(header[i]) for i in candidates) or "none"
-    if column is not None:
-        for test in (
-            lambda h: h == column,
-            lambda h: _ASSIGNMENT_HEADER.match(h)["id"] == column,
-            lambda h: _ASSIGNMENT_HEADER.match(h)["title"] == column,
-        ):
-            hits = [i for i in candidates if test(header[i])]
-            if len(hits) == 1:
-                return hits[0]
-            if hits:
-                several = "; ".join(repr(header[i]) for i in hits)
-                raise ValueError(
-                    f"{len(hits)} assignment columns match --column {column!r}: {several}; give the one you mean "
-                    "by its assignment id, the number in parentheses"
-                )
-        raise ValueError(f"the gradebook has no assignment column {column!r}; its assignment columns are: {listing}")
-    hits = [i for i in candidates if names_problem(_ASSIGNMENT_HEADER.match(header[i])["title"], problem)]
-    if len(hits) != 1:
-        found = "no assignment column" if not hits else "several assignment columns"
-        named = listing if not hits else "; ".join(repr(header[i]) for i in hits)
-        raise ValueError(f"{found} of the gradebook names {problem!r}: give --column, one of: {named}")
-    return hits[0]
-
-
-def format_score(value: float) -> str:
-    """A score as Canvas shows it: at most two decimals, no trailing zeros (``7.5``, ``15``)."""
-    text = f"{value:.2f}".rstrip("0").rstrip(".")
-    return "0" if text in ("-0", "") else text
-
-
-def scaled_score(total: float, maximum: float, points_possible: float | None) -> float:
-    """The score in the column's points: ``total / maximum * points_possible`` (unscaled without it)."""
-    if points_possible is None or abs(points_possible - maximum) < 1e-9:
-        return total
-    return total / maximum * points_possible
-
-
-def fill_column(gradebook: Gradebook, column: int, scores: dict[int, str]) -> str:
-    """The import's text: the records of the export cut to its identifying fields (``Student``
-    to ``Section``) and ``column``, with ``scores`` (user id -> cell text) written into it.
-
-    Canvas's import updates only the columns and the students the file holds. The export's
-    other assignments, and the students with no score in ``scores``, are left out: their cells
-    would put back what Canvas held when the export was made, over any grade changed since.
-    The other records are kept (the header, the Manual Posting and Points Possible rows), and
-    each kept field's raw text and quotes, the separator, the byte-order mark and the line
-    endings are the export's.
-    """
-    user_of_row = {row: user for user, row in gradebook.student_rows.items()}
-    out = [gradebook.bom]
-    for r, record in enumerate(gradebook.records):
-        fields, ending = split_fields(record, gradebook.delimiter)
-        if fields == [""]:  # a blank line
-            out.append(record)
-            continue
-        fields += [""] * (column + 1 - len(fields))
-        user = user_of_row.get(r)
-        if user is not None and user not in scores:
-            continue  # no new score: Canvas keeps what it holds
-        cell = fields[column] if user is None else scores[user]  # the header and other rows keep theirs
-        out.append(gradebook.delimiter.join([*fields[: gradebook.first_assignment_column], cell]) + ending)
-    return "".join(out)
-
-
-# --- grading and the report ----------------------------------------------------------------------
 
 
 @dataclass
@@ -750,68 +163,9 @@ def grade_canvas(
 
 def _run_batch(jobs: int | None, seed: int | None = None, compare_with: list[Path] | None = None) -> GradeFn:
     def grade(folder: Path, spec_path: Path, out: Path) -> list[dict]:
-        # Imported here: the batch grader is heavy and this module's reading and writing of Canvas
-        # files must work (and be tested) without it.
-        from labsupport.instructor.batch import run_batch
-
         return run_batch(folder, spec_path, out, jobs=jobs, seed=seed, compare_with=compare_with)
 
     return grade
-
-
-def is_zip(path: Path) -> bool:
-    """Whether ``path`` is a file named as a zip (``.zip`` in any case)."""
-    return path.is_file() and path.suffix.lower() == ".zip"
-
-
-def open_zip(zip_path: Path) -> zipfile.ZipFile:
-    """The zip at ``zip_path``, open; ``ValueError`` saying what to do when it cannot be read."""
-    try:
-        return zipfile.ZipFile(zip_path)
-    except (zipfile.BadZipFile, OSError, UnicodeDecodeError) as err:  # the last: a name flagged UTF-8 that is not
-        raise ValueError(
-            f"{zip_path} is not a readable zip ({err}): download the submissions from Canvas again"
-        ) from None
-
-
-def zip_notebooks(zip_path: Path, spec: dict) -> tuple[dict[str, bytes], list[str]]:
-    """The notebooks of a zip to compare for shared code, by entry name, and what was left out, why.
-
-    From a Canvas "Download Submissions" zip, each student's one notebook for the Problem of
-    ``spec``, chosen as for grading (:func:`choose_notebook`); an entry not named as Canvas names
-    uploads (a zip of notebooks made by hand) is a notebook of its own. ``ValueError`` for a zip
-    that cannot be read or is refused (:func:`safe_zip_entries`).
-    """
-    notebooks, left_out = {}, []
-    with open_zip(zip_path) as zf:
-        entries = [info for info in safe_zip_entries(zf) if not is_os_metadata(info.filename)]
-        by_student: dict[int | str, list[SubmissionFile]] = {}
-        chosen = []
-        for info in entries:
-            f = parse_submission_name(info.filename)
-            if f is None:
-                if info.filename.lower().endswith(".ipynb"):
-                    chosen.append(info.filename)
-            else:
-                by_student.setdefault(f.user_id or f.anonymous_id, []).append(f)
-        for files in by_student.values():
-            pick = choose_notebook(files, notebook_stem(spec), spec["problem"])
-            other = pick and _other_problem(pick.base_name, spec["problem"])
-            left_out += [
-                f"{f.entry} ({other}'s notebook)" if f is pick else f"{f.entry} (the student's other notebook)"
-                for f in files
-                if f.is_notebook and (f is not pick or other)
-            ]
-            if pick and not other:
-                chosen.append(pick.entry)
-        infos = {info.filename: info for info in entries}
-        for entry in sorted(chosen):
-            data, why = read_notebook_entry(zf, infos[entry])
-            if why:
-                left_out.append(f"{entry} ({why})")
-            else:
-                notebooks[entry] = data
-    return notebooks, left_out
 
 
 def _select_submissions(
@@ -852,7 +206,7 @@ def _select_submissions(
         if pick is None:
             result.missing.append(f"{who} (ID {user}): no notebook in the zip; left out of the import")
             continue
-        other = _other_problem(pick.base_name, spec["problem"])
+        other = other_problem(pick.base_name, spec["problem"])
         if other:
             result.missing.append(
                 f"{who} (ID {user}): {pick.original} is {other}'s notebook, not {stem}.ipynb; left out of the "
@@ -864,7 +218,7 @@ def _select_submissions(
             result.late.append(f"{who}: {pick.entry}")
         if pick.resubmission:
             result.resubmissions.append(f"{who}: {pick.original} (Canvas's name for a re-upload of {pick.base_name})")
-        if _plain(stem) not in _plain(pick.base_name):
+        if plain(stem) not in plain(pick.base_name):
             result.notes.append(f"{who}: graded {pick.original}, whose name differs from {stem}.ipynb")
         if pick.name and unicodedata.normalize("NFC", pick.name) != _zip_name(gradebook.student_name(user)):
             result.notes.append(
@@ -877,13 +231,6 @@ def _select_submissions(
                 f"{gradebook.student_name(user)} (ID {user}): nothing in the zip; left out of the import"
             )
     return chosen
-
-
-def _other_problem(file_name: str, problem: str) -> str | None:
-    """The Problem a file is named after (``problem2`` in ``problem2_tracking.ipynb``) when it is
-    not ``problem``; None when the name names none, or this one."""
-    named, own = re.search(r"problem(\d+)", _plain(file_name)), re.search(r"problem(\d+)", _plain(problem))
-    return f"problem{named[1]}" if named and own and named[1] != own[1] else None
 
 
 def _zip_name(sortable_name: str) -> str:
@@ -977,7 +324,7 @@ def _record_scores(
         if row.get("status") == "unreadable":
             reason = "; ".join(row.get("notes", [])[:1]) or "no reason given"
             result.unreadable.append(f"{who}: {f.original}: {reason}")
-        if previous and previous not in ("-", score) and _decimal_point(previous) != score:
+        if previous and previous not in ("-", score) and decimal_point(previous) != score:
             result.replaced.append(f"{who}: replaces the grade {previous} already in Canvas with {score}")
         result.scores[user] = score
 
@@ -1015,23 +362,6 @@ def _write_feedback_zip(out: Path, result: CanvasResult) -> None:
     with zipfile.ZipFile(out / "feedback_upload.zip", "w", zipfile.ZIP_DEFLATED) as zf:
         for path in sorted(result.feedback.values()):
             zf.write(path, path.name)
-
-
-def names_problem(title: str, problem: str) -> bool:
-    """Whether an assignment's title names ``problem``: ``problem1`` in "Problem 1: Reaching", not
-    in "Problem 10"."""
-    return re.search(re.escape(_plain(problem)) + r"(?!\d)", _plain(title)) is not None
-
-
-def column_warning(header: str, problem: str) -> str:
-    """A warning when the column chosen (by ``--column``) does not name the Problem, else ""."""
-    match = _ASSIGNMENT_HEADER.match(header)
-    if names_problem(match["title"] if match else header, problem):
-        return ""
-    return (
-        f"Check first: the column's title does not name {problem}; make sure it is this Problem's assignment "
-        "before you import (--column chose it)"
-    )
 
 
 def report_text(gradebook: Gradebook, spec: dict, result: CanvasResult) -> str:
@@ -1086,8 +416,6 @@ def main(argv=None) -> None:
         default=None,
         help="seed of the test states (default: a fresh secret one; OUT/batch/batch.json records it)",
     )
-    from labsupport.instructor.batch import check_compare_with, compare_with_argument  # heavy: the grader
-
     compare_with_argument(parser)
     args = parser.parse_args(argv)
     check_compare_with(parser, args.compare_with, Path(args.submissions))

@@ -34,8 +34,9 @@ from labsupport.instructor.batch import (
     read_submissions,
     shared_code_reports,
 )
-from labsupport.instructor.canvas import clean_text, is_zip, keep_previous, keep_private, zip_notebooks
+from labsupport.instructor.outputs import clean_text, keep_previous, keep_private
 from labsupport.instructor.similarity import FLAG_SHARE
+from labsupport.instructor.submissions import is_zip, zip_notebooks
 
 #: The files this command writes (and moves into ``previous/`` when an earlier run left them).
 REPORTS = ("similarity.csv", "similarity.html")
@@ -70,7 +71,7 @@ def zip_submissions(
     parser: argparse.ArgumentParser, zip_path: Path, spec: dict
 ) -> list[tuple[str, bytes | None, str | None]]:
     """The notebooks of a zip as :func:`folder_submissions` gives a folder's: of a Canvas download,
-    each student's notebook for the Problem (:func:`labsupport.instructor.canvas.zip_notebooks`);
+    each student's notebook for the Problem (:func:`labsupport.instructor.submissions.zip_notebooks`);
     what is left out, and why, goes to stderr."""
     try:
         notebooks, left_out = zip_notebooks(zip_path, spec)

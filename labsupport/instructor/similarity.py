@@ -59,7 +59,7 @@ except ImportError as err:  # a checkout whose environment predates the report
 
 from labsupport.instructor import judge
 from labsupport.instructor.assign import ROOT
-from labsupport.instructor.canvas import clean_text, csv_cell
+from labsupport.instructor.outputs import clean_text, csv_cell
 
 #: A pair is listed when either notebook has at least this share of its own code in the other.
 FLAG_SHARE = 0.6
@@ -174,7 +174,7 @@ th, td { border: 1px solid #999; padding: .25rem .5rem; overflow-wrap: anywhere;
 
 def _text(text: str) -> str:
     """A file name or a reason as the page shows it: as text, on one line, and writable in UTF-8
-    (a name may hold what UTF-8 cannot: :func:`labsupport.instructor.canvas.clean_text`)."""
+    (a name may hold what UTF-8 cannot: :func:`labsupport.instructor.outputs.clean_text`)."""
     return html.escape(clean_text(text))
 
 

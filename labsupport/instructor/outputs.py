@@ -1,0 +1,107 @@
+"""What the graders write, and how: every text a student's code can reach made safe for a file,
+the feedback files recognised and cleared, and an earlier run's results kept.
+
+Both graders use it: :mod:`labsupport.instructor.batch` (a folder of notebooks) and
+:mod:`labsupport.instructor.canvas` (a Canvas zip and gradebook), and so does the shared-code
+report (:mod:`labsupport.instructor.similarity`).
+"""
+
+from __future__ import annotations
+
+import os
+import unicodedata
+from pathlib import Path
+
+#: Longest message or note written into a feedback file, a CSV cell or a report [characters].
+MAX_MESSAGE_CHARS = 2000
+
+#: Bidirectional overrides and isolates: they reorder what a reader sees of the text around them.
+_BIDI_CONTROLS = frozenset("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
+
+#: How every feedback file either grader writes begins (how a stale one is recognised).
+FEEDBACK_HEADER = "Feedback on "
+
+#: The files a batch writes that a regrade into the same folder moves into ``previous/``.
+BATCH_RESULTS = ("grades.csv", "batch.json", "similarity.csv", "similarity.html")
+
+#: The same for a Canvas run: the import, the report and the feedback zip.
+CANVAS_RESULTS = ("gradebook_import.csv", "report.txt", "feedback_upload.zip")
+
+
+def clean_text(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
+    """``text`` made safe to write into a feedback file, a CSV cell or a report: one line, no
+    control characters, at most ``limit`` characters.
+
+    Student code writes into the messages (an exception's text, a printed string): a line break
+    would let it add a line of its own ("Score: 10 / 10"), a NUL byte or a terminal escape would
+    garble the file or the terminal showing it, and a lone surrogate (``"\\ud800"`` in a
+    notebook's JSON) would stop every UTF-8 file it went into from being written, and with it
+    the whole class's grades. Tabs and line breaks become spaces; any other control character
+    (Unicode category Cc, and the bidirectional overrides) and any surrogate (Cs) becomes a
+    visible escape such as ``\\x1b``; a longer text is cut and ends in "…".
+    """
+    text = str(text)
+    shown = "".join(_visible(c) for c in text[:limit])
+    if len(text) > limit or len(shown) > limit:
+        return shown[: limit - 1] + "…"
+    return shown
+
+
+#: What a spreadsheet reads as the start of a formula when a cell begins with it.
+_FORMULA_STARTS = ("=", "+", "-", "@")
+
+
+def csv_cell(text: str) -> str:
+    """``text`` as :func:`clean_text` makes it, and written so that a spreadsheet shows it as text:
+    one that begins as a formula does (``=HYPERLINK(...)``, ``+1``, ``@SUM``) gets a leading ``'``.
+    For the cells of a grader's CSV that a student's file name fills."""
+    text = clean_text(text)
+    return "'" + text if text.startswith(_FORMULA_STARTS) else text
+
+
+def _visible(c: str) -> str:
+    """One character as :func:`clean_text` writes it."""
+    if c in "\t\n\r\v\f\x1c\x1d\x1e\x85\u2028\u2029":  # every character str.splitlines breaks at, and tab
+        return " "
+    if unicodedata.category(c) in ("Cc", "Cs") or c in _BIDI_CONTROLS:
+        return ascii(c)[1:-1]
+    return c
+
+
+def remove_stale_feedback(folder: Path, keep: set[str]) -> None:
+    """Delete the feedback files an earlier run left in ``folder`` (a regrade into the same
+    ``--out``), so that it matches what was just graded; only ``*.txt`` files a grader wrote (they
+    begin with :data:`FEEDBACK_HEADER`) are touched. Names are compared in any case, as a
+    case-insensitive file system would."""
+    keep = {name.casefold() for name in keep}
+    header = FEEDBACK_HEADER.encode()
+    for path in folder.iterdir():
+        if path.name.casefold() in keep or not path.name.endswith(".txt") or path.is_symlink() or not path.is_file():
+            continue
+        try:
+            with open(path, "rb") as f:
+                stale = f.read(len(header)) == header
+            if stale:
+                path.unlink()
+        except OSError:  # not this grader's to remove
+            continue
+
+
+def keep_previous(folder: Path, names: tuple[str, ...]) -> None:
+    """Move the files ``names`` that an earlier run wrote in ``folder`` into ``folder/previous/``,
+    replacing what an even earlier run left there: a regrade into the same folder loses nothing,
+    and leaves nothing of the earlier run beside its own results."""
+    earlier = [folder / name for name in names if (folder / name).is_file()]
+    if not earlier:
+        return
+    previous = folder / "previous"
+    previous.mkdir(exist_ok=True)
+    for path in earlier:
+        os.replace(path, previous / path.name)
+    print(f"the earlier run's {', '.join(p.name for p in earlier)} are now in {previous}")
+
+
+def keep_private() -> None:
+    """Make the files and folders this process creates from now on its owner's alone (umask 077):
+    the outputs hold students' grades."""
+    os.umask(0o077)
