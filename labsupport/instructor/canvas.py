@@ -40,6 +40,7 @@ import unicodedata
 import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 from labsupport.instructor.assign import chosen_spec, load_spec, problem_arguments, seed_argument
@@ -152,20 +153,14 @@ def grade_canvas(
             f"cannot write the output folder {out} ({err.strerror}): give --out a folder you can write to"
         ) from None
     keep_previous(out, CANVAS_RESULTS)
-    rows = _grade(Path(submissions_zip), chosen, spec_path, out, result, grade or _run_batch(jobs, seed, compare_with))
+    grade = grade or partial(run_batch, jobs=jobs, seed=seed, compare_with=compare_with)
+    rows = _grade(Path(submissions_zip), chosen, spec_path, out, result, grade)
     _record_scores(gradebook, col, spec, chosen, rows, out, result)
     remove_stale_feedback(out / "feedback", {path.name for path in result.feedback.values()})
     (out / "gradebook_import.csv").write_bytes(fill_column(gradebook, col, result.scores).encode("utf-8"))
     _write_feedback_zip(out, result)
     (out / "report.txt").write_text(report_text(gradebook, spec, result), encoding="utf-8")
     return result
-
-
-def _run_batch(jobs: int | None, seed: int | None = None, compare_with: list[Path] | None = None) -> GradeFn:
-    def grade(folder: Path, spec_path: Path, out: Path) -> list[dict]:
-        return run_batch(folder, spec_path, out, jobs=jobs, seed=seed, compare_with=compare_with)
-
-    return grade
 
 
 def _select_submissions(
