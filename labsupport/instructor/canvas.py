@@ -246,7 +246,7 @@ def _grade(
     folder = Path(tempfile.mkdtemp(prefix="canvas-submissions-"))  # mode 0700: private
     try:
         files = {}
-        with zipfile.ZipFile(zip_path) as zf:
+        with open_zip(zip_path) as zf:
             infos = {info.filename: info for info in safe_zip_entries(zf)}
             for user, f in sorted(chosen.items()):
                 data, why = read_notebook_entry(zf, infos[f.entry])
