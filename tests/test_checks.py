@@ -495,6 +495,29 @@ def test_ik_ct_mistakes_are_named(master2):
     assert model.nv == 3
 
 
+def test_a_scratch_forwarded_only_once_is_told_to_recompute_its_kinematics(master2):
+    """A scratch MjData forwarded once, then given only mj_kinematics at each q_d, keeps the Jacobian
+    data (cdof) of its first configuration: the torque is wrong, and the message names the calls."""
+    model, ik = common.arm_model(), master2["ik_3r"]
+    scratch = mujoco.MjData(model)
+    mujoco.mj_forward(model, scratch)
+
+    def stale(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        q_d = ik(x_d, elbow_up=True)
+        scratch.qpos[:] = q_d
+        mujoco.mj_kinematics(model, scratch)  # mj_comPos missing: J(q_d) mixes two configurations
+        J_d = site_jacobian(model, scratch, SITE)[:3]
+        qd_d = np.linalg.solve(J_d, xd_d)
+        scratch.qvel[:] = qd_d
+        mujoco.mj_comVel(model, scratch)
+        qdd_d = np.linalg.solve(J_d, xdd_d - site_jdot_qdot(model, scratch, SITE)[:3])
+        M, h = mass_matrix(model, data), bias_forces(data)
+        return M @ (qdd_d + Kd * (qd_d - data.qvel) + Kp * (q_d - data.qpos)) + h
+
+    result = grade("p2_ikct", ct_ik_joint_torque=stale)
+    assert result.score == 0 and "mujoco.mj_comPos ran after its qpos was set" in result.message, result
+
+
 def gravity_at(model, q):
     """h(q, 0): the bias forces at rest, gravity alone."""
     d = mujoco.MjData(model)

@@ -422,7 +422,9 @@ def check_ik_ct(probe: Probe, seed: int) -> Result:
             if verdict.score == 0 and text.startswith("got"):
                 text = (
                     "the torque differs from IK + joint CT: check q_d = IK(x_d) (elbow up), q̇_d = J(q_d)⁻¹ ẋ_d "
-                    "and q̈_d = J(q_d)⁻¹(ẍ_d − J̇(q_d, q̇_d) q̇_d); " + text
+                    "and q̈_d = J(q_d)⁻¹(ẍ_d − J̇(q_d, q̇_d) q̇_d), with J and J̇q̇ from a scratch MjData on which "
+                    "mujoco.mj_kinematics and mujoco.mj_comPos ran after its qpos was set, and mujoco.mj_comVel "
+                    "after its qvel, at every call; " + text
                 )
             return failed(name, f"{label}: {_where(case, 'the reference', text)}", verdict.score)
         worst = max(worst, verdict.jdot_error or 0.0)
