@@ -4,17 +4,19 @@ executed outputs, so page, code and results cannot drift apart.
 * :func:`glue` stores a value under a name with MyST-NB, so a page's text can cite it with
   ``{glue:text}`name:.3f```. Without MyST-NB (Colab) it does nothing.
 * :func:`show_law` displays the source of a control law of :mod:`labsupport` as highlighted
-  code, right under the equation it implements.
+  code (its docstring left out), right under the equation it implements.
 * :func:`show_figure` shows a figure with the text alternative the notebook writes for it from
   the values it plots, so picture and words cannot drift apart.
 """
 
 from __future__ import annotations
 
+import ast
 import base64
 import inspect
 import io
 import re
+import textwrap
 from collections.abc import Callable
 from html import escape
 from typing import Any
@@ -44,18 +46,35 @@ def glue(name: str, value: Any, display: bool = False) -> None:
     _glue(name, value, display=display)
 
 
+def law_source(fn: Callable) -> str:
+    """The source of ``fn`` as ``inspect.getsource`` gives it, less its docstring: the code a
+    page shows under the law's equation, which the page renders in place of the docstring's
+    reStructuredText. A ``ValueError`` for a function without a source file."""
+    try:
+        source = inspect.getsource(fn)
+    except (TypeError, OSError):
+        raise ValueError(f"show_law needs a function defined in a source file, got {fn!r}") from None
+    lines = source.splitlines()
+    code = textwrap.dedent(source)  # a method's source is indented; the line numbers stay
+    node = ast.parse(code).body[0]
+    if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and ast.get_docstring(node, clean=False) is not None:
+        doc, dedented = node.body[0], code.splitlines()
+        before = dedented[doc.lineno - 1][: doc.col_offset]
+        after = dedented[doc.end_lineno - 1][doc.end_col_offset :]
+        if not before.strip() and not after.strip():  # the docstring has lines of its own
+            del lines[doc.lineno - 1 : doc.end_lineno]
+    return "\n".join(lines).rstrip() + "\n"
+
+
 def show_law(fn: Callable) -> None:
-    """Display the code of a control law, its source exactly as ``inspect.getsource`` gives it
-    (docstring and equation included), as a highlighted Python block in the notebook and on the
-    built page.
+    """Display the code of a control law, :func:`law_source` (its source less the docstring,
+    whose equation the page shows rendered just above), as a highlighted Python block in the
+    notebook and on the built page.
 
     The block is Markdown holding a fenced ``python`` code block: Jupyter and Colab highlight
     it, and MyST-NB renders it as the book's ordinary highlighted code block.
     """
-    try:
-        source = inspect.getsource(fn).rstrip() + "\n"
-    except (TypeError, OSError):
-        raise ValueError(f"show_law needs a function defined in a source file, got {fn!r}") from None
+    source = law_source(fn)
     fence = "```"
     while fence in source:
         fence += "`"

@@ -356,3 +356,48 @@ def test_planar_arm_frames_refuses_a_video_that_would_fill_the_memory():
     video = plots.planar_arm_frames([dict(q=q, title="a")], LAB_ARM, frames=picked, size=(64, 48))
     assert video.shape == (len(picked), 48, 64, 3)
     plt.close("all")
+
+
+# --- show_law: a law's code under its equation, its docstring left out ---------------------------
+
+
+def _documented(theta, Kp):
+    r"""PD feedback: :math:`\tau = K_p\,\theta`.
+
+    .. math:: \tau = K_p\theta
+    """
+    # the spring term
+    return Kp * theta
+
+
+def _bare(x):
+    return 2 * x
+
+
+def _one_liner(x):
+    """Twice ``x``."""; return 2 * x  # fmt: skip # noqa: E702
+
+
+class _Holder:
+    def method(self, x):
+        """Indented, as a method's source is."""
+        return x + 1
+
+
+def test_law_source_leaves_out_the_docstring_and_keeps_the_code():
+    assert book.law_source(_documented) == "def _documented(theta, Kp):\n    # the spring term\n    return Kp * theta\n"
+    assert book.law_source(_bare) == "def _bare(x):\n    return 2 * x\n"
+    assert book.law_source(_Holder.method) == "    def method(self, x):\n        return x + 1\n"
+    # a docstring that shares its line with code stays, so no code is lost
+    assert "return 2 * x" in book.law_source(_one_liner)
+
+
+def test_show_law_displays_the_code_as_a_python_block(monkeypatch):
+    shown = []
+    monkeypatch.setattr(book, "display", shown.append)
+    book.show_law(_documented)
+    text = shown[0].data
+    assert text.startswith("```python\ndef _documented(theta, Kp):") and text.endswith("```")
+    assert "math" not in text
+    with pytest.raises(ValueError, match="defined in a source file"):
+        book.show_law(len)

@@ -3,7 +3,8 @@
 A Task notebook runs laws it imports from ``labsupport.controllers``; each of them must be shown
 on the page with ``labsupport.book.show_law``, so the built HTML holds a highlighted code block
 with that function's ``def``. The code comes from the package itself, so it is compared with
-``inspect.getsource`` of the installed function: page and package cannot disagree.
+the installed function's source less its docstring (``labsupport.book.law_source``; the page
+renders the docstring's equation above the code): page and package cannot disagree.
 
 Every notebook page also reads without scrolling sideways at common window widths: the laws,
 the unfolded code cells and the printouts; and so do the display equations of every page.
@@ -20,6 +21,8 @@ import re
 import pytest
 from bs4 import BeautifulSoup
 from sitetools import ROOT, WIDTHS, require_site
+
+from labsupport.book import law_source
 
 TASKS = ["task1_single_joint", "task2_single_joint_mujoco", "task3_planar_2r", "task4_ur5e"]
 CONTROLLERS = "labsupport.controllers"
@@ -71,7 +74,7 @@ def test_every_law_run_is_shown(notebook):
     blocks = shown_code_blocks(notebook)
     missing = []
     for fn in laws.values():
-        source = inspect.getsource(fn).strip()
+        source = law_source(fn).strip()
         if not any(source in re.sub(r"\r\n", "\n", b) for b in blocks):
             missing.append(f"{fn.__module__}.{fn.__name__}")
     assert not missing, (
