@@ -176,7 +176,7 @@ def single_joint_panel(
             textcoords="offset points",
             ha="left",
             va="top",
-            fontsize=8,
+            fontsize=9,
             color="0.3",
         )
     if limit is not None and quantity == "torque":
