@@ -144,7 +144,7 @@ def single_joint_panel(
         runs: label -> ``sim.Log`` of a one-joint arm; runs after the first are dashed, dash-dotted...
         reference: ``reference(t) -> Reference`` (radians); drawn as "desired" (a wide grey band)
             on an angle panel; an error panel shows desired minus actual, :math:`\theta_d - \theta`.
-        level: ``(label, value)``, a dotted horizontal line named under its left end, in the panel's unit before the
+        level: ``(label, value)``, a dotted horizontal line named above its left end, in the panel's unit before the
             conversion to degrees (radians for an angle, rad/s for a speed).
         limit: the actuator limit, drawn as red dotted lines at :math:`\pm` ``limit`` on a torque panel.
     """
@@ -166,17 +166,18 @@ def single_joint_panel(
             raise ValueError(f"level must be a pair (label, value), got {validate.short(level)}") from None
         value = np.degrees(value) if quantity in ("angle", "rate") else value
         ax.axhline(value, color="gray", ls=":")
-        # named under the line's left end, where the runs start (as a legend entry it crowded
-        # the free response's legend onto a curve)
+        # named above the line's left end, where the runs start away from it (as a legend entry
+        # it crowded the free response's legend onto a curve; under the line, a step response
+        # rising through it crossed the name)
         ax.annotate(
             text,
             (0, value),
             xycoords=("axes fraction", "data"),
-            xytext=(3, -2),
+            xytext=(3, 2),
             textcoords="offset points",
             ha="left",
-            va="top",
-            fontsize=9,
+            va="bottom",
+            fontsize=10,
             color="0.3",
         )
     if limit is not None and quantity == "torque":
