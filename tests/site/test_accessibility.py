@@ -61,3 +61,21 @@ def test_pages_reflow_on_a_phone(on_every_page, width):
     widths = on_every_page("() => document.documentElement.scrollWidth", width)
     wide = {page: w for page, w in widths.items() if w > width}
     assert not wide, f"pages wider than a {width} px window (px): {wide}"
+
+
+#: Each video's width and how far its right edge lies past its output box's [px].
+VIDEO_FIT_JS = """() => [...document.querySelectorAll('main video')].map(v => {
+  const r = v.getBoundingClientRect(), box = v.closest('div.cell_output').getBoundingClientRect();
+  return {width: Math.round(r.width), past: Math.round(r.right - box.right)};
+})"""
+
+
+@pytest.mark.parametrize("width", (320, 390))
+def test_videos_fit_a_phone(on_every_page, width):
+    """A video shrinks to the page's column on a phone: at its pixel size its right side and
+    its own controls (sound, full screen) lay outside the column, reached only by scrolling the
+    output sideways."""
+    videos = on_every_page(VIDEO_FIT_JS, width)
+    assert sum(len(v) for v in videos.values()) >= 4, "expected the Task 3 and Task 4 videos"
+    cut = {page: v for page, v in videos.items() if any(x["past"] > 1 for x in v)}
+    assert not cut, f"videos wider than their column in a {width} px window: {cut}"

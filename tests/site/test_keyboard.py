@@ -15,7 +15,7 @@ from sitetools import expected_colab_url, is_notebook, require_site, toc_pages
 NOTEBOOK_PAGES = [p for p in toc_pages() if is_notebook(p)]
 #: The most Tab presses a control may take to reach (the header, the sidebar and the page's
 #: own links come first).
-MAX_TABS = 250
+MAX_TABS = 150
 
 FOCUSED_JS = r"""
 () => {
@@ -89,3 +89,31 @@ def test_every_video_is_reached_and_played_from_the_keyboard(tab_page, page):
         tab.keyboard.press("Space")
         tab.wait_for_timeout(300)
         assert tab.evaluate(FOCUSED_JS)["paused"] == before, f"{page}: a second Space did not toggle video {k + 1} back"
+
+
+@pytest.mark.parametrize("page", toc_pages())
+def test_every_tab_stop_shows_focus_and_formulas_are_not_tab_stops(tab_page, page):
+    """Tab from the top of the page to its end: every control it stops at shows the focus
+    (the buttons that open the sidebars included, the only way to the contents on a phone),
+    and no formula is a stop (MathJax made every one of them one: 168 on the theory page)."""
+    require_site()
+    tab = tab_page(page)
+    tab.evaluate("async () => { if (window.MathJax?.startup?.promise) await MathJax.startup.promise; }")
+    tab.add_style_tag(content="*, *::before, *::after { transition: none !important; }")
+    math = tab.evaluate("() => document.querySelectorAll('mjx-container[tabindex]:not([tabindex=\"-1\"])').length")
+    assert math == 0, f"{page}: {math} formulas are Tab stops (MathJax's inTabOrder setting, _config.yml)"
+    hidden, videos = [], set()
+    for _ in range(MAX_TABS):
+        tab.keyboard.press("Tab")
+        focused = tab.evaluate(FOCUSED_JS)
+        if focused is None:  # past the last control
+            break
+        if focused["tag"] == "VIDEO":  # then the browser's own controls inside it, drawn by the browser
+            if focused["label"] in videos:
+                continue
+            videos.add(focused["label"])
+        if not focus_is_visible(focused):
+            hidden.append({k: focused[k] for k in ("tag", "label", "text", "href")})
+    else:
+        pytest.fail(f"{page}: {MAX_TABS} Tab presses did not reach the end of the page")
+    assert not hidden, f"{page}: focused controls that show no focus indicator: {hidden}"
