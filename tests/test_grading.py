@@ -566,6 +566,38 @@ def test_the_sandbox_sees_no_checkout_and_no_forbidden_module(tmp_path):
     assert "labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO" in lines[4]
 
 
+def test_the_sandbox_can_fill_only_its_capped_scratch_space(tmp_path):
+    """bubblewrap's root and /dev are tmpfs mounts without a size limit, in the host's memory: a
+    submission could fill gigabytes there. Only home, /tmp and /dev/shm take files, each capped."""
+    layout = isolation.prepare(tmp_path / "layout")
+    mib = 1 << 20
+    cap = layout.limits.scratch // (8 * mib)  # 8 MiB files each folder can hold
+    probe = (  # a few files past the cap at most, so that a regression cannot fill this machine
+        "import os\n"
+        "for d in ('/', '/opt', '/etc', '/home', '/dev', '/dev/shm', '/tmp', os.getcwd()):\n"
+        "    n = 0\n"
+        f"    while n < {cap + 2}:\n"
+        "        try:\n"
+        "            with open(os.path.join(d, f'f{n}'), 'wb') as f:\n"
+        f"                f.write(bytes({8 * mib}))\n"
+        "        except OSError:\n"
+        "            break\n"
+        "        n += 1\n"
+        "    print(d, n)\n"
+    )
+    proc = subprocess.run(
+        isolation.command(layout, [layout.python, "-c", probe]),
+        capture_output=True,
+        text=True,
+        timeout=120,
+        preexec_fn=lambda: isolation.apply_limits(layout.limits),
+    )
+    written = {line.split()[0]: int(line.split()[1]) for line in proc.stdout.splitlines()}
+    assert written.keys() == {"/", "/opt", "/etc", "/home", "/dev", "/dev/shm", "/tmp", "/home/student"}, proc.stderr
+    assert all(written[d] == 0 for d in ("/", "/opt", "/etc", "/home", "/dev")), written
+    assert all(0 < written[d] <= cap for d in ("/dev/shm", "/tmp", "/home/student")), written
+
+
 def test_masters_and_unusual_right_answers_get_full_marks_on_problem2(tmp_path):
     """The master, and the same answers written another right way (a SciPy IK, J̇q̇ by finite
     differences, explicit inverses: ``hostile/build.py``), score full marks in the sandbox."""

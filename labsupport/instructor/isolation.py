@@ -16,8 +16,8 @@ read-only by every sandbox of the batch:
 
 Each sandbox then gets its own PID, network, IPC, UTS and user namespaces (no network at all;
 when its first process ends, or the grader stops it, the kernel kills every process left in it,
-however it detached), a private ``tmpfs`` as home, ``/tmp`` and working folder, the system
-libraries read-only, and resource limits (address space, CPU time, file size, core dumps,
+however it detached), a private ``tmpfs`` of capped size as home (its working folder), ``/tmp``
+and ``/dev/shm``, everything else read-only, and resource limits (address space, CPU time, file size, core dumps,
 processes). It sees neither the checkout, nor the submissions, nor the output folder, nor the
 grader, nor any other submission.
 """
@@ -60,7 +60,8 @@ class Limits:
         file_size: largest file it may write [bytes].
         processes: processes per user (enforced by the kernel only for a grader not run as root;
             the PID namespace's teardown bounds them in every case).
-        scratch: size of the private tmpfs [bytes].
+        scratch: size of each private tmpfs (home, ``/tmp``, ``/dev/shm``) [bytes]; nothing
+            else in the sandbox is writable.
     """
 
     memory: int = 4 << 30
@@ -358,6 +359,10 @@ def command(layout: Layout, argv: list[str], writable: dict[str, Path] | None = 
         "--size",
         str(layout.limits.scratch),
         "--tmpfs",
+        "/dev/shm",
+        "--size",
+        str(layout.limits.scratch),
+        "--tmpfs",
         "/tmp",
         "--size",
         str(layout.limits.scratch),
@@ -370,7 +375,9 @@ def command(layout: Layout, argv: list[str], writable: dict[str, Path] | None = 
         cmd += ["--dir", f"{HOME}/.config/matplotlib"]
         for p in sorted((layout.root / "mpl").glob("*.json")):
             cmd += ["--ro-bind", str(p), f"{HOME}/.config/matplotlib/{p.name}"]
-    cmd += ["--chdir", HOME, "--clearenv"]
+    # The root and /dev are tmpfs mounts bubblewrap makes without a size limit: read-only, so
+    # that the only memory a submission can fill with files is its capped scratch space.
+    cmd += ["--remount-ro", "/dev", "--remount-ro", "/", "--chdir", HOME, "--clearenv"]
     for k, v in layout.env:
         if not (k == "PYTHONDONTWRITEBYTECODE" and not warm):  # the warm-up run writes the bytecode
             cmd += ["--setenv", k, v]

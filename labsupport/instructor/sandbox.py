@@ -202,7 +202,7 @@ def main() -> None:
         os.dup2(devnull, fd)
     sys.stdin = open(os.devnull, encoding="utf-8")
     sys.stdout = sys.stderr = open(os.devnull, "w", encoding="utf-8")
-    scratch = (os.getcwd(), os.environ.get("TMPDIR", "/tmp"))
+    scratch = (os.getcwd(), os.environ.get("TMPDIR", "/tmp"), "/dev/shm")
     files_before = _listing(scratch)
 
     import labsupport  # noqa: F401, I001  (chooses the GL backend before mujoco)
