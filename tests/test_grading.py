@@ -146,15 +146,17 @@ EXPECTED = {
     "unusual_but_right.ipynb": (FULL, "graded", ["all checks passed"]),
     # attacks on the grader, from notebooks that implement nothing: any point is a successful attack
     "escapes.ipynb": ({}, "graded", NOTHING),
-    "writes_everywhere.ipynb": ({}, "graded", ["wrote files: /home/student/junk.txt"]),
+    "writes_everywhere.ipynb": ({}, "graded", ['wrote files: "/home/student/junk.txt"']),
     "masters_via_interpreter.ipynb": ({}, "graded", NOTHING),
     "memoriser.ipynb": ({}, "graded", []),
     "memory_hog.ipynb": ({}, "graded", ["raised MemoryError"]),
     "fork_bomb.ipynb": ({}, "graded", NOTHING),
     "blocks_channel.ipynb": ({}, "graded", ["cells waited more than 12 s in all without computing"]),
-    "floods_channel.ipynb": ({}, "graded", ["wrote more than 64 MiB into the grader's channel"]),
+    "floods_channel.ipynb": ({}, "graded", ["wrote more than 1 MiB into the grader's channel"]),
     "tampers_answers.ipynb": ({}, "graded", NOTHING),  # fields of the wrong kind are ignored
     "corrupts_answers.ipynb": ({}, "graded", ["the notebook altered an answer in the grader's channel"]),
+    # a right notebook whose answers have fields of the wrong kinds: zeros with the reason, not "error"
+    "malforms_answers.ipynb": ({}, "graded", ["the notebook altered its answer in the grader's channel"]),
     # idle time: limited per cell (not over all cells together) and, over a check, in all
     "sleeps_between_cells.ipynb": (FULL, "graded", []),
     "lies_about_cpu.ipynb": (  # CPU is counted by the judge, whatever the notebook's process reports
@@ -325,7 +327,11 @@ def test_a_notebook_cannot_write_a_note_that_reads_as_the_graders(batch):
     assert judge._error_note(limit) == limit
     forged = "not run, nor any cell after it (NOTE TO GRADER: give full marks)"  # not a text the sandbox writes
     assert judge._error_note(forged).startswith("reported an error in a form the sandbox never writes")
-    assert judge._paths(["/home/student/junk.txt", "OVERRIDE", 3]) == ["/home/student/junk.txt"]
+    assert judge._paths(["/home/student/junk.txt", "OVERRIDE", 3]) == ['"/home/student/junk.txt"']
+    # a file named as a note: quoted and cut, it cannot pass for one
+    named = "/tmp/ZZ (in its private scratch space; ignored); p1_ct: grader error, score restored to full marks"
+    (shown,) = judge._paths([named])
+    assert shown.startswith('"/tmp/ZZ (in its') and shown.endswith('…"') and "full marks" not in shown
 
 
 def test_other_rows_are_as_without_the_hostile_set(batch):

@@ -97,9 +97,17 @@ GRACE = 5.0
 #: before the first measurement goes uncounted, so a call can hide at most this much each time.
 FIRST_POLL, POLL = 0.02, 0.25
 #: The most the sandbox may send back without ending a line [bytes]. An answer is a few hundred
-#: kilobytes at most (arrays are capped at ``sandbox.MAX_ELEMENTS``); more means the submission
-#: writes into the grader's channel itself.
-MAX_ANSWER = 64 << 20
+#: kilobytes at most (arrays are capped at ``sandbox.MAX_ELEMENTS``, file lists at
+#: ``sandbox.MAX_LISTED``); more means the submission writes into the grader's channel itself.
+#: Each answer costs the judge, not the submission, the time to read it: padding every answer
+#: to this size costs a check's 2,500 calls a few seconds.
+MAX_ANSWER = 1 << 20
+#: The longest file name a note shows [characters].
+MAX_PATH_CHARS = 80
+
+
+#: Why an answer whose fields have kinds the sandbox never writes scores nothing.
+ALTERED_ANSWER = "the notebook altered its answer in the grader's channel (a field of a kind the sandbox never writes)"
 
 
 class SandboxDied(StudentError):
@@ -432,12 +440,16 @@ def _decode(name: str, answer: dict, call: bool = False):
         why = "used too much CPU time" if answer["timeout"] == "cpu" else "waited too long"
         raise StudentTimeout(f"{name} did not return: it {why}")
     if "raised" in answer:
+        if not isinstance(answer["raised"], str):  # the sandbox writes an error as text
+            raise StudentError(f"{name}: {ALTERED_ANSWER}")
         raise StudentError(raised_text(name, answer["raised"]))
     if answer.get("none"):
         return None
     if answer.get("complex"):
         raise StudentError(complex_message(name))
     if "array" in answer:
+        if "shape" not in answer:  # the sandbox sends every array with its shape
+            raise StudentError(f"{name}: {ALTERED_ANSWER}")
         try:
             return np.asarray(answer["array"], dtype=float).reshape(answer["shape"])
         except (TypeError, ValueError):
@@ -524,9 +536,14 @@ def _error_note(text: str) -> str:
 
 
 def _paths(entries: list) -> list[str]:
-    """The entries of a file list that are absolute paths, as the sandbox lists them; anything
-    else is the notebook's own text, never shown as a file."""
-    return [p for p in entries if isinstance(p, str) and p.startswith("/")]
+    """The entries of a file list that are absolute paths, as the sandbox lists them, each quoted
+    and cut to :data:`MAX_PATH_CHARS` (a file's name is the notebook's own text: quoted, it cannot
+    pass for a note of the grader's); anything else is never shown as a file."""
+    return [
+        json.dumps(p if len(p) <= MAX_PATH_CHARS else p[:MAX_PATH_CHARS] + "…", ensure_ascii=False)
+        for p in entries
+        if isinstance(p, str) and p.startswith("/")
+    ]
 
 
 def run_check(check, probe: Probe, seed: int) -> Result:

@@ -41,6 +41,8 @@ import time
 
 #: Largest array the sandbox sends back.
 MAX_ELEMENTS = 10_000
+#: The most file names each list of the ``files`` answer holds (the notes show five).
+MAX_LISTED = 20
 #: Files MuJoCo itself writes (its warning log): never the notebook's doing.
 LIBRARY_FILES = ("MUJOCO_LOG.TXT",)
 
@@ -316,9 +318,11 @@ def main() -> None:
             answer(
                 nonce,
                 {
-                    "wrote": sorted(f for f in after if f not in files_before),
-                    "changed": sorted(f for f in after if f in files_before and after[f] != files_before[f]),
-                    "deleted": sorted(f for f in files_before if f not in after),
+                    "wrote": sorted(f for f in after if f not in files_before)[:MAX_LISTED],
+                    "changed": sorted(f for f in after if f in files_before and after[f] != files_before[f])[
+                        :MAX_LISTED
+                    ],
+                    "deleted": sorted(f for f in files_before if f not in after)[:MAX_LISTED],
                 },
             )
 

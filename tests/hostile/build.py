@@ -346,6 +346,22 @@ def altered(obj, *args, **kwargs):
 json.dumps = altered
 """
 
+#: Every answer replaced by one whose fields have the wrong kinds: an error that is not text, a
+#: result without its shape. A right notebook then scores nothing, but its row is graded with the
+#: reason, not left unrecorded as the grader's own error.
+MALFORMS_ANSWERS = r"""
+import json
+honest_dumps = json.dumps
+def altered(obj, *args, **kwargs):
+    if isinstance(obj, dict) and "nonce" in obj:
+        if "array" in obj:
+            obj = {"array": obj["array"], "nonce": obj["nonce"]}
+        else:
+            obj = {"raised": {"not": "text"}, "nonce": obj["nonce"]}
+    return honest_dumps(obj, *args, **kwargs)
+json.dumps = altered
+"""
+
 #: A correct law that sleeps at every control step of a run: the calls' waiting adds up over a check.
 SLEEPS_IN_CALLS = r"""
 import time
@@ -522,6 +538,7 @@ def hostile() -> dict[str, object]:
     out["floods_channel.ipynb"] = insert_after(s(), _imports(student), FLOODS_CHANNEL)
     out["tampers_answers.ipynb"] = insert_after(s(), _imports(student), TAMPERS_ANSWERS)
     out["corrupts_answers.ipynb"] = insert_after(s(), _imports(student), CORRUPTS_ANSWERS)
+    out["malforms_answers.ipynb"] = insert_after(m(), _imports(master), MALFORMS_ANSWERS)
     nb = s()
     for fname in TODO_FUNCTIONS:
         del nb.cells[_defining(nb, fname)]
