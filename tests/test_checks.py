@@ -893,6 +893,30 @@ def test_an_ik_a_full_turn_off_is_named_by_the_tracking_run(master2):
     assert "over-the-top" not in track.message, track.message
 
 
+@pytest.mark.parametrize("seed", [PUBLIC_SEED, OTHER_SEED])
+def test_one_law_handed_in_for_both_earns_no_tracking_credit_for_the_copy(master2, seed):
+    """ct_ik_joint_torque answered by calling ct_op_torque (or the other way round) tracks the
+    circle, but its run is not a run of its law: the copy earns nothing on p2_track (it earned
+    half of it, more than leaving the TODO blank), the law it copies keeps its half."""
+    op, ik_ct = master2["ct_op_torque"], master2["ct_ik_joint_torque"]
+
+    def op_for_ik(model, data, *ref):
+        return op(model, data, *ref)
+
+    def ik_for_op(model, data, *ref):
+        return ik_ct(model, data, *ref)
+
+    for functions, copy, kept in (
+        ({"ct_op_torque": op, "ct_ik_joint_torque": op_for_ik}, "IK+JS-CT", "OS-CT"),
+        ({"ct_op_torque": ik_for_op, "ct_ik_joint_torque": ik_ct}, "OS-CT", "IK+JS-CT"),
+    ):
+        track = grade("p2_track", seed, **functions)
+        assert track.score == 0.5, track
+        assert f"{copy}: {'ct_ik_joint_torque' if copy == 'IK+JS-CT' else 'ct_op_torque'} returns" in track.message
+        assert f"{kept}: RMS error" in track.message, track.message
+    assert grade("p2_track", seed, ct_op_torque=op, ct_ik_joint_torque=ik_ct).score == 1
+
+
 def test_finite_difference_jdot_tracks_and_never_scores_below_dropping_it(master2):
     fd = {"ct_op_torque": os_fd_time(), "ct_ik_joint_torque": ik_ct_fd_time(master2["ik_3r"])}
     dropped = {"ct_op_torque": os_no_jdot, "ct_ik_joint_torque": master2["ct_ik_joint_torque"]}

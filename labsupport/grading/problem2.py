@@ -502,6 +502,32 @@ def _left_the_branch(model, log, every: int = 10, ik=None) -> str | None:
     return None
 
 
+def _other_laws_torque(probe: Probe, seed: int, fname: str) -> str | None:
+    """Why a run of the student's ``fname`` is not a run of its law, or None: at the test state of
+    its own check where OS-CT and IK + joint CT differ most, it returns the *other* law's torque
+    (within a tenth of their difference). An alias such as ``ct_ik_joint_torque = ct_op_torque``
+    tracks the circle, and would otherwise earn the credit of a law never written. None too where
+    the call fails: the run then says why."""
+    own_check, still, own, other, label, other_label = {
+        "ct_op_torque": ("p2_osct", "arm", _os_case, _ik_case, "OS-CT", "IK + joint CT"),
+        "ct_ik_joint_torque": ("p2_ikct", "reference", _ik_case, _os_case, "IK + joint CT", "OS-CT"),
+    }[fname]
+    model = arm_model()
+    torques = [(own(model, c)[0], other(model, c)[0], c) for c in tracking_cases(seed, own_check, still=still)]
+    tau_own, tau_other, case = max(torques, key=lambda t: np.linalg.norm(t[0] - t[1]))
+    try:
+        tau = call_along(probe, fname, case, lambda k: (case.x_d[k], case.xd_d[k], case.xdd_d[k], case.Kp, case.Kd))
+    except StudentError:
+        return None
+    apart = np.linalg.norm(tau_own - tau_other)
+    if np.linalg.norm(tau - tau_other) < 0.1 * apart:
+        return (
+            f"{fname} returns {other_label}'s torque, not {label}'s, at a test state where the two laws differ "
+            f"by {100 * apart / np.linalg.norm(tau_own):.0f} %, so its run is not counted as {label}'s"
+        )
+    return None
+
+
 def check_tracking(probe: Probe, seed: int) -> Result:
     """Both of the student's controllers track one turn of a seeded circle with RMS error below
     :data:`RMS_TOL`, starting on it and moving with it."""
@@ -523,6 +549,11 @@ def check_tracking(probe: Probe, seed: int) -> Result:
 
     score, notes, statuses = 0.0, [], []
     for fname, label in (("ct_op_torque", "OS-CT"), ("ct_ik_joint_torque", "IK+JS-CT")):
+        borrowed = _other_laws_torque(probe, seed, fname)
+        if borrowed:
+            notes.append(f"{label}: {borrowed}")
+            statuses.append("ran")
+            continue
         try:
             log = run_student(probe, fname, args, TRACK_DURATION, q0, qdot0, reference=ref)
         except StudentError as err:
@@ -587,6 +618,7 @@ SCORING = {
     f"{2 * IK_APPROX * 1e6:g} µm of the target explains (a numerical IK's) counts as exact too.",
     "p2_track": (
         f"Each of the two controllers runs one {TRACK_DURATION:g} s turn of a drawn circle from a start on it: half "
-        f"the credit for each whose RMS position error stays below {RMS_TOL * 1e3:g} mm."
+        f"the credit for each whose RMS position error stays below {RMS_TOL * 1e3:g} mm. A controller that "
+        "returns the other law's torque (one law handed in twice) is not run and earns nothing here."
     ),
 }
