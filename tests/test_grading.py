@@ -574,7 +574,8 @@ def test_the_sandbox_sees_no_checkout_and_no_forbidden_module(tmp_path):
 
 def test_the_sandbox_can_fill_only_its_capped_scratch_space(tmp_path):
     """bubblewrap's root and /dev are tmpfs mounts without a size limit, in the host's memory: a
-    submission could fill gigabytes there. Only home, /tmp and /dev/shm take files, each capped."""
+    submission could fill gigabytes there. Only home, /tmp and /dev/shm take files, each capped;
+    and memory its processes ask for together is taken back from them first."""
     layout = isolation.prepare(tmp_path / "layout")
     mib = 1 << 20
     cap = layout.limits.scratch // (8 * mib)  # 8 MiB files each folder can hold
@@ -590,6 +591,7 @@ def test_the_sandbox_can_fill_only_its_capped_scratch_space(tmp_path):
         "            break\n"
         "        n += 1\n"
         "    print(d, n)\n"
+        "print(open('/proc/self/oom_score_adj').read().strip())\n"
     )
     proc = subprocess.run(
         isolation.command(layout, [layout.python, "-c", probe]),
@@ -598,7 +600,9 @@ def test_the_sandbox_can_fill_only_its_capped_scratch_space(tmp_path):
         timeout=120,
         preexec_fn=lambda: isolation.apply_limits(layout.limits),
     )
-    written = {line.split()[0]: int(line.split()[1]) for line in proc.stdout.splitlines()}
+    lines = proc.stdout.splitlines()
+    assert lines.pop() == "1000", "the sandbox's processes must be the out-of-memory killer's first choice"
+    written = {line.split()[0]: int(line.split()[1]) for line in lines}
     assert written.keys() == {"/", "/opt", "/etc", "/home", "/dev", "/dev/shm", "/tmp", "/home/student"}, proc.stderr
     assert all(written[d] == 0 for d in ("/", "/opt", "/etc", "/home", "/dev")), written
     assert all(0 < written[d] <= cap for d in ("/dev/shm", "/tmp", "/home/student")), written

@@ -390,7 +390,17 @@ def server_command(layout: Layout) -> list[str]:
 
 
 def apply_limits(limits: Limits) -> None:
-    """Resource limits for the sandbox's processes (run in the child before bubblewrap starts)."""
+    """Resource limits for the sandbox's processes (run in the child before bubblewrap starts).
+
+    The address-space limit holds per process, and the process limit only for a grader not run
+    as root, so a submission's processes together may still ask for more memory than the machine
+    has. They are then the first the kernel's out-of-memory killer stops (``oom_score_adj`` 1000,
+    inherited by all of them), never the grader or the rest of the machine."""
+    try:
+        with open("/proc/self/oom_score_adj", "w") as f:
+            f.write("1000")
+    except OSError:
+        pass  # no /proc: the limits below still hold
     for which, value in (
         (resource.RLIMIT_AS, limits.memory),
         (resource.RLIMIT_CPU, limits.cpu),
