@@ -140,8 +140,14 @@ EXPECTED = {
     "copies_law_source.ipynb": (  # the law's source copied with inspect and run with exec: no import to see
         {"p1_ik": 3, "p1_pd": 2},
         "graded",
-        ["p1_ct: CT: labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO"],
+        [
+            "p1_ct: CT: labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO",
+            "runs code built while the notebook runs",
+        ],
     ),
+    # the master's answers run from encoded strings: right, so full marks, but the note tells the
+    # instructor that the shared-code report cannot see them
+    "hides_its_code.ipynb": (FULL, "graded", ["run code built while the notebook runs"]),
     # right answers written unusually (SciPy's least squares for the IK, np.matrix gains, MuJoCo's mj_mulM)
     "unusual_but_right.ipynb": (FULL, "graded", ["all checks passed"]),
     # attacks on the grader, from notebooks that implement nothing: any point is a successful attack
@@ -332,6 +338,23 @@ def test_a_notebook_cannot_write_a_note_that_reads_as_the_graders(batch):
     named = "/tmp/ZZ (in its private scratch space; ignored); p1_ct: grader error, score restored to full marks"
     (shown,) = judge._paths([named])
     assert shown.startswith('"/tmp/ZZ (in its') and shown.endswith('…"') and "full marks" not in shown
+
+
+def test_code_built_at_run_time_is_named_and_code_as_written_is_not():
+    cells = [
+        (0, "import re, json\nre.compile(pattern)\nx = eval('1 + 1')\njson.loads(text)"),
+        (2, "import base64, zlib\nexec(zlib.decompress(base64.b64decode('eJw=')).decode())"),
+        (3, "%time\nexec(inspect.getsource(f), ns)"),
+        (5, "import builtins\nbuiltins.eval(code)"),
+        (6, "import marshal\nf = marshal.loads(data)"),
+        (7, "def broken(:"),
+    ]
+    assert judge.code_built_at_run_time(cells) == [
+        "cell 3 ('import base64, zlib')",
+        "cell 4 ('%time')",
+        "cell 6 ('import builtins')",
+        "cell 7 ('import marshal')",
+    ]
 
 
 def test_other_rows_are_as_without_the_hostile_set(batch):

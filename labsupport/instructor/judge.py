@@ -26,6 +26,7 @@ or ignored, never trusted.
 
 from __future__ import annotations
 
+import ast
 import inspect
 import json
 import os
@@ -496,6 +497,42 @@ def read_cells(text: bytes) -> list[tuple[int, str]]:
     return cells
 
 
+#: Calls that run code given as data: what they run is not in the notebook's text.
+_RUNS_DATA = frozenset(
+    {"exec", "eval", "compile", "builtins.exec", "builtins.eval", "builtins.compile", "marshal.loads"}
+)
+
+
+def code_built_at_run_time(cells: list[tuple[int, str]]) -> list[str]:
+    """The cells (as :func:`_cell_named` names them) that run code they build while they run:
+    ``exec``, ``eval`` or ``compile`` of anything but a written-out string, or ``marshal.loads``.
+    The shared-code report compares the code as written, so code decoded from a string (say
+    ``exec(zlib.decompress(base64.b64decode(...)))``) is invisible to it: the instructor reads it.
+    A lead, never a score."""
+    found = []
+    for k, source in cells:
+        code = "\n".join("" if line.lstrip().startswith(("%", "!")) else line for line in source.splitlines())
+        try:
+            tree = ast.parse(code)
+        except (SyntaxError, ValueError, RecursionError, MemoryError):
+            continue
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.Call):
+                continue
+            func = node.func
+            if isinstance(func, ast.Name):  # exec(...), eval(...), compile(...)
+                name = func.id
+            elif isinstance(func, ast.Attribute) and isinstance(func.value, ast.Name):  # builtins.exec, marshal.loads
+                name = f"{func.value.id}.{func.attr}"
+            else:
+                continue
+            written_out = node.args and isinstance(node.args[0], ast.Constant) and isinstance(node.args[0].value, str)
+            if name in _RUNS_DATA and not written_out:
+                found.append(_cell_named(k, source))
+                break
+    return found
+
+
 def _cell_named(index: int, source: str) -> str:
     """A cell as a student finds it in Jupyter, which shows no cell numbers: its place among all
     cells (counted from 1) and its first line."""
@@ -580,6 +617,13 @@ def grade(
     command, env, cwd = start()
     probe = SandboxProbe(command, cells, budget, env=env, cwd=cwd, limits=limits)
     notes: list[str] = []
+    built = code_built_at_run_time(cells)
+    if built:
+        notes.append(
+            f"{', '.join(built[:3])} run{'s' if len(built) == 1 else ''} code built while the notebook runs "
+            "(exec, eval or compile of a string it makes), which is not in the notebook's text: the instructor "
+            "reads it by hand"
+        )
     scores, messages, statuses = {}, {}, {}
     try:
         try:

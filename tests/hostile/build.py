@@ -16,10 +16,12 @@ here by running the checks against the master's functions.
 from __future__ import annotations
 
 import argparse
+import base64
 import copy
 import hashlib
 import os
 import sys
+import zlib
 from pathlib import Path
 
 import nbformat
@@ -45,6 +47,12 @@ def _imports(nb) -> int:
         if cell.cell_type == "code" and cell.source.startswith("import labsupport"):
             return k
     raise LookupError("no import cell")
+
+
+def hidden(source: str) -> str:
+    """``source`` run from a compressed, base64-encoded string: the same code, not in the text."""
+    blob = base64.b64encode(zlib.compress(source.encode(), 9)).decode()
+    return f"import base64, zlib\nexec(zlib.decompress(base64.b64decode({blob!r})).decode())"
 
 
 def insert_after(nb, index: int, source: str):
@@ -501,6 +509,10 @@ def hostile() -> dict[str, object]:
     nb = replace_function(m(), "ik_3r", HIDDEN_IK)
     out["hides_borrowed_code.ipynb"] = replace_function(nb, "ct_joint_torque", HIDDEN_CT)
     out["copies_law_source.ipynb"] = replace_function(m(), "ct_joint_torque", COPIED_CT)
+    nb = m()  # the master's answers, each run from an encoded string: right, but hidden from the report
+    for fname in TODO_FUNCTIONS:
+        nb = replace_function(nb, fname, hidden(nb.cells[_defining(nb, fname)].source))
+    out["hides_its_code.ipynb"] = nb
     nb = replace_function(m(), "ik_3r", UNUSUAL_IK)
     nb = replace_function(nb, "pd_torque", UNUSUAL_PD)
     out["unusual_but_right.ipynb"] = replace_function(nb, "ct_joint_torque", UNUSUAL_CT)
