@@ -20,6 +20,7 @@ import json
 import os
 import shutil
 import stat
+import warnings
 import zipfile
 from pathlib import Path
 
@@ -501,6 +502,20 @@ def test_zip_slip_is_refused(tmp_path, evil):
     with pytest.raises(ValueError, match="points outside the folder"):
         canvas.grade_canvas(zpath, EXPORT, SPEC, tmp_path / "out", grade=fake_grade(calls))
     assert calls == [] and not (tmp_path / "escaped_1234_1_problem1_reaching.ipynb").exists()
+
+
+def test_a_zip_with_two_entries_of_one_name_is_refused(tmp_path):
+    """zipfile keeps both, and the grader took the last: which copy counted was a guess."""
+    zpath = tmp_path / "twice.zip"
+    name = "smithbob_1234_50001_problem1_reaching.ipynb"
+    with zipfile.ZipFile(zpath, "w") as zf, warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # zipfile warns of the duplicate name
+        zf.writestr(name, fake_notebook(p1_ik=3))
+        zf.writestr(name, fake_notebook())
+    calls = []
+    with pytest.raises(ValueError, match=f"two entries named '{name}'"):
+        canvas.grade_canvas(zpath, EXPORT, SPEC, tmp_path / "out", grade=fake_grade(calls))
+    assert calls == []
 
 
 #: Entries named as Info-ZIP and rubyzip store them: bytes without the UTF-8 flag.
