@@ -16,10 +16,10 @@ read-only by every sandbox of the batch:
 
 Each sandbox then gets its own PID, network, IPC, UTS and user namespaces (no network at all;
 when its first process ends, or the grader stops it, the kernel kills every process left in it,
-however it detached), a private ``tmpfs`` of capped size as home (its working folder), ``/tmp``
-and ``/dev/shm``, everything else read-only, and resource limits (address space, CPU time, file size, core dumps,
-processes). It sees neither the checkout, nor the submissions, nor the output folder, nor the
-grader, nor any other submission.
+however it detached), a private ``tmpfs`` of capped size as home (its working folder), as
+``/tmp`` and as ``/dev/shm``, everything else read-only, and resource limits (address space,
+CPU time, file size, core dumps, processes). It sees neither the checkout, nor the
+submissions, nor the output folder, nor the grader, nor any other submission.
 """
 
 from __future__ import annotations

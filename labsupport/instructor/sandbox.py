@@ -315,16 +315,12 @@ def main() -> None:
             answer(nonce, payload)
         elif op == "files":
             after = _listing(scratch)
-            answer(
-                nonce,
-                {
-                    "wrote": sorted(f for f in after if f not in files_before)[:MAX_LISTED],
-                    "changed": sorted(f for f in after if f in files_before and after[f] != files_before[f])[
-                        :MAX_LISTED
-                    ],
-                    "deleted": sorted(f for f in files_before if f not in after)[:MAX_LISTED],
-                },
-            )
+            lists = {
+                "wrote": [f for f in after if f not in files_before],
+                "changed": [f for f in after if f in files_before and after[f] != files_before[f]],
+                "deleted": [f for f in files_before if f not in after],
+            }
+            answer(nonce, {label: sorted(files)[:MAX_LISTED] for label, files in lists.items()})
 
 
 if __name__ == "__main__":

@@ -174,14 +174,15 @@ def safe_zip_entries(zf: zipfile.ZipFile) -> list[zipfile.ZipInfo]:
     outside its folder or explode.
 
     Refused: more than :data:`MAX_ZIP_ENTRIES` entries, an absolute name, a drive letter, a
-    ``..`` part, a NUL byte, a symbolic link, two entries of one name (which would be graded
-    is then a guess), or a declared total over :data:`MAX_ZIP_BYTES`; the name checked is the
+    ``..`` part, a NUL byte, a symbolic link, two entries of one name (which of them to grade
+    would be a guess), or a declared total over :data:`MAX_ZIP_BYTES`; the name checked is the
     one used. (Renaming an entry is safe: :meth:`zipfile.ZipFile.open`
     compares the file's own header with ``orig_filename``, which stays as read.)
     """
     infos = zf.infolist()
     if len(infos) > MAX_ZIP_ENTRIES:
         raise ValueError(f"the zip holds {len(infos)} entries, more than {MAX_ZIP_ENTRIES}: not a Canvas download")
+    seen = set()
     for info in infos:
         name = info.filename = entry_name(info)
         parts = name.replace("\\", "/").split("/")
@@ -192,14 +193,12 @@ def safe_zip_entries(zf: zipfile.ZipFile) -> list[zipfile.ZipInfo]:
             )
         if (info.external_attr >> 16) & 0o170000 == 0o120000:
             raise ValueError(f"the zip holds a symbolic link {name!r}; Canvas never does: download it again")
-    seen = set()
-    for info in infos:
-        if info.filename in seen:
+        if name in seen:
             raise ValueError(
-                f"the zip holds two entries named {info.filename!r}, so which one to grade is a guess; Canvas "
-                "never writes that: download the submissions from Canvas again, or rename one and zip them again"
+                f"the zip holds two entries named {name!r}, so which one to grade is a guess; Canvas never "
+                "writes that: download the submissions from Canvas again, or rename one and zip them again"
             )
-        seen.add(info.filename)
+        seen.add(name)
     total = sum(info.file_size for info in infos)
     if total > MAX_ZIP_BYTES:
         raise ValueError(
