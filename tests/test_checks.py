@@ -728,13 +728,15 @@ def test_right_laws_that_change_their_arguments_in_place_get_full_marks(master1,
 
 
 @pytest.mark.filterwarnings("ignore::PendingDeprecationWarning")  # NumPy's word on np.matrix, which students meet
-def test_right_numbers_as_a_row_or_a_column_get_full_marks(master1):
+def test_right_torques_as_a_row_or_a_column_get_full_marks_and_joint_vectors_are_told_to_be_flat(master1):
     """np.matrix products and x[:, None] keep two dimensions; the numbers are right, and
-    :func:`labsupport.sim.simulate` takes such a torque too. Three numbers too few or too many are
-    still refused, with the shape asked for."""
+    :func:`labsupport.sim.simulate` takes such a torque too. A joint vector is another matter:
+    the notebook's cells set it into data.qpos, which refuses a (3, 1) with a traceback, so the
+    check says so first. Three numbers too few or too many are refused, with the shape asked for."""
     ik, pd, ct = master1["ik_3r"], master1["pd_torque"], master1["ct_joint_torque"]
+    column = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, elbow_up)[:, None])
+    assert column.score == 0 and "has shape (3, 1), expected (3,): 3 numbers; return it flat" in column.message
     cases = {
-        "p1_ik": {"ik_3r": lambda x, elbow_up=True: np.matrix(ik(x, elbow_up))},
         "p1_pd": {"pd_torque": lambda *args: pd(*args)[:, None]},
         "p1_ct": {"ct_joint_torque": lambda *args: np.matrix(ct(*args))},
         "p1_reach": {"ct_joint_torque": lambda *args: ct(*args)[None, :]},

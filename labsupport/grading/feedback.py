@@ -175,10 +175,12 @@ def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.nda
     if arr is None:
         shown = f" {validate.short(value)}" if isinstance(value, (list, tuple, np.ndarray)) else ""
         raise StudentError(f"{fname} returned {type(value).__name__}{shown}, expected {size} numbers")
-    if arr.size == size:  # a row or a column of the right numbers (np.matrix, x[:, None]): as simulate takes it
+    if arr.size == size and what == "torque":  # a row or a column (np.matrix, x[:, None]): simulate takes it
         arr = arr.reshape(size)
     if arr.shape != (size,):
-        raise StudentError(f"the {what} from {fname} has shape {arr.shape}, expected ({size},): {size} numbers")
+        # a joint vector is set into data.qpos by the notebook's cells, which refuses a row or a column
+        flat = f"; return it flat: np.ravel(...) of it (a row or a column of {size} numbers)" if arr.size == size else ""
+        raise StudentError(f"the {what} from {fname} has shape {arr.shape}, expected ({size},): {size} numbers{flat}")
     if not np.all(np.isfinite(arr)):
         note = validate.none_note(value)
         problem = "contains None" if note else "contains NaN" if np.any(np.isnan(arr)) else "is not finite"
