@@ -179,7 +179,7 @@ def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.nda
         arr = arr.reshape(size)
     if arr.shape != (size,):
         # a joint vector is set into data.qpos by the notebook's cells, which refuses a row or a column
-        flat = f"; return it flat: np.ravel(...) of it (a row or a column of {size} numbers)" if arr.size == size else ""
+        flat = f"; return it flat, np.ravel(...) (a row or a column of {size} numbers)" if arr.size == size else ""
         raise StudentError(f"the {what} from {fname} has shape {arr.shape}, expected ({size},): {size} numbers{flat}")
     if not np.all(np.isfinite(arr)):
         note = validate.none_note(value)
