@@ -1414,6 +1414,35 @@ def test_a_run_whose_law_raised_says_it_once_with_the_students_line(capsys):
     )
 
 
+def test_a_law_that_writes_into_the_arms_state_is_told_so_not_that_it_diverged(capsys):
+    """``e = data.qpos; e -= q_d`` gives the right torque at every test state (the checks pass
+    copies), but in the notebook's run it moved the arm itself, which then diverged with the
+    advice to check the law's signs, which were right."""
+    from labsupport.grading import as_controller, attempt
+    from labsupport.plants import load_model
+    from labsupport.sim import simulate
+
+    model, data = load_model("spatial_3r")
+    q_d = np.array([0.5, -0.3, 0.2])
+
+    def pd_torque(model, data, q_d, Kp, Kd):
+        e = data.qpos
+        e -= q_d  # writes into data.qpos
+        return -Kp * e - Kd * data.qvel
+
+    def pd_right(model, data, q_d, Kp, Kd):
+        return Kp * (q_d - data.qpos) - Kd * data.qvel
+
+    ctrl = as_controller(pd_torque, q_d, 100.0, 20.0)
+    assert attempt("PD", lambda: simulate(model, data, ctrl, 1.0), ctrl, model) is None
+    said = capsys.readouterr().out
+    assert said.startswith("PD: skipped, pd_torque changed data.qpos or data.qvel") and "diverged" not in said
+    assert "e = q_d - data.qpos" in said
+    ctrl = as_controller(pd_right, q_d, 100.0, 20.0)
+    log = attempt("PD", lambda: simulate(model, data, ctrl, 1.0), ctrl, model)
+    assert np.abs(log.q[-1] - q_d).max() < 0.05
+
+
 # --- what a student installs holds no answer ------------------------------------------------------------
 
 

@@ -27,6 +27,8 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Mapping
 
+import numpy as np
+
 from labsupport.grading.feedback import (
     CHECK_CPU_SECONDS,
     DirectProbe,
@@ -109,9 +111,19 @@ class StudentController:
         return self.torque(model, data)
 
     def torque(self, model, data):
-        """The student's torque at ``data``, checked (nothing recorded)."""
+        """The student's torque at ``data``, checked (nothing recorded). A law that writes into
+        the arm's state (``e = data.qpos; e -= q_d``) is stopped with that reason: the run would
+        otherwise go on from a state the law made up, and diverge as if its signs were wrong."""
         extra = self.args[0](float(data.time)) if self.moving else self.args
-        return as_vector(self.name, self.fn(model, data, *extra), model.nu, "torque")
+        state = np.concatenate((data.qpos, data.qvel))
+        tau = self.fn(model, data, *extra)
+        if not np.array_equal(state, np.concatenate((data.qpos, data.qvel)), equal_nan=True):
+            raise StudentError(
+                f"{self.name} changed data.qpos or data.qvel, the arm's own state (an in-place operation such as "
+                "e = data.qpos; e -= q_d writes into it): compute with new arrays, e.g. e = q_d - data.qpos, or "
+                "take a copy first, data.qpos.copy()"
+            )
+        return as_vector(self.name, tau, model.nu, "torque")
 
 
 def as_controller(fn: Callable, *args) -> StudentController:
