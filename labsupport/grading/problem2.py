@@ -349,6 +349,20 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
             "once the arm is on the reference, so it still tracks.",
             0.75,
         ),
+        "jdot_arm_velocity": Mistake(
+            law(np.linalg.solve(Td.J, xdd_d - terms(model, q_d, qdot).jdq)),
+            "q̈_d takes J̇q̇ at q_d but with the arm's velocity q̇ (the scratch MjData's qvel set to data.qvel); "
+            "the reference needs J̇(q_d, q̇_d) q̇_d, with its qvel set to q̇_d. The two agree once the arm is on "
+            "the reference, so it still tracks.",
+            0.75,
+        ),
+        "jacobian_at_arm": Mistake(
+            law(np.linalg.solve(T.J, xdd_d - terms(model, q_d, qd_now).jdq), qd=qd_now),
+            "q̇_d and q̈_d use the Jacobian of the arm's state, J(q) from the data the law is given; the "
+            "reference needs J(q_d), from the scratch MjData set to q_d. The two agree once the arm is on the "
+            "reference, so it still tracks.",
+            0.75,
+        ),
         "jdot_at_arm": Mistake(
             law(np.linalg.solve(Td.J, xdd_d - T.jdq)),
             "q̈_d takes J̇q̇ at the arm's state, J̇(q, q̇) q̇; the reference needs it at (q_d, q̇_d): "
