@@ -286,6 +286,18 @@ def test_check_names_a_wrong_call():
         check("p1_pd", None)
 
 
+def test_a_law_written_with_the_labs_scaffold_signature_is_told_to_keep_the_stubs(master1):
+    """The lab's own scaffold writes pd_torque(data, q_d, Kp, Kd): the check's call then fails in
+    Python itself, and the message says which arguments the checks pass."""
+
+    def pd_torque(data, q_d, Kp, Kd):
+        return Kp * (q_d - data.qpos) - Kd * data.qvel
+
+    result = grade("p1_pd", pd_torque=pd_torque)
+    assert result.score == 0 and "takes 4 positional arguments but 5 were given" in result.message
+    assert "keep the stub's def line as it was handed out" in result.message, result.message
+
+
 def test_complex_numbers_are_named_in_the_notebook_and_in_the_batch_grader(master1):
     """(1 - c**2)**0.5 with |c| > 1 is complex in Python; NumPy used to drop the imaginary part
     with a ComplexWarning, and the check then compared the real part."""

@@ -286,6 +286,14 @@ JACOBIAN_ROWS_HINT = (
 )
 
 
+#: Why a law may be called with more or fewer arguments than it takes: a signature other than the
+#: stub's (the lab's own scaffold writes ``pd_torque(data, q_d, Kp, Kd)``, without ``model``).
+SIGNATURE_HINT = (
+    " (the checks and the runs call it with the arguments of the TODO's stub, model and data first: "
+    "keep the stub's def line as it was handed out)"
+)
+
+
 def raised_text(fname: str, error: str) -> str:
     """What to say when the student's ``fname`` raised ``error`` (``"TypeName: message"``), with a
     hint where the error has a common cause in this lab."""
@@ -294,6 +302,8 @@ def raised_text(fname: str, error: str) -> str:
         hint = SINGULAR_HINT
     elif re.search(r"\(6,|\b6\)", error) and re.search(r"broadcast|dimension|aligned|shape", error):
         hint = JACOBIAN_ROWS_HINT
+    elif re.match(rf"TypeError: (?:\S+\.)?{re.escape(fname)}\(\) .*(?:positional|keyword) argument", error):
+        hint = SIGNATURE_HINT  # the call of fname itself does not fit its def line
     else:
         hint = full_m_advice(error)
     return f"{fname} raised {error}{hint}"
