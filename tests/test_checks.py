@@ -286,6 +286,16 @@ def test_check_names_a_wrong_call():
         check("p1_pd", None)
 
 
+def test_a_reach_that_falls_short_points_back_at_the_law():
+    """CT without h ends 13 cm from the target; the message said only that, with no word on where to look."""
+
+    def ct_without_h(model, data, q_d, Kp, Kd):
+        return mass_matrix(model, data) @ (Kp * (q_d - data.qpos) - Kd * data.qvel)
+
+    result = grade("p1_reach", ct_joint_torque=ct_without_h)
+    assert result.score == 0 and "h(q, q̇) or M(q) most often; the CT check above says which" in result.message
+
+
 def test_a_law_written_with_the_labs_scaffold_signature_is_told_to_keep_the_stubs(master1):
     """The lab's own scaffold writes pd_torque(data, q_d, Kp, Kd): the check's call then fails in
     Python itself, and the message says which arguments the checks pass."""
