@@ -98,7 +98,9 @@ OVER_THE_TOP = (
 #: What a tracking error above :data:`RMS_TOL` from a law that runs usually means.
 TRACKING_HINT = (
     " (a right law tracks to 0.075 mm or less here; 0.4 mm or more is what a missing or wrong term leaves: "
-    "J̇q̇, the Coriolis part of h, or M; the formula checks above say which)"
+    "J̇q̇, the Coriolis part of h, or M; the formula checks above say which. If they all pass, look for state "
+    "your law keeps between calls, such as the last J of a J̇ by time differences: each run starts at t = 0, "
+    "after the checks' calls, so start afresh when data.time goes back)"
 )
 JDOT_HINT = (
     'MuJoCo gives it: site_jdot_qdot(model, data, "end_effector")[:3]; a finite-difference '
