@@ -390,6 +390,22 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
     }
 
 
+def _ik_expected(T, state, case: Case) -> np.ndarray:
+    """IK + joint CT's formula with MuJoCo's terms ``T`` at the case's tested ``state``."""
+    q_d, qd_d, qdd_d = case.q_d[-1], case.qd_d[-1], case.qdd_d[-1]
+    return T.M @ (qdd_d + case.Kd * (qd_d - state.qdot) + case.Kp * (q_d - state.q)) + T.h
+
+
+def _law_torque(model, case: Case, law: str) -> np.ndarray:
+    """The torque of ``law`` (``"os"`` or ``"ik"``) at the case's tested state, without the named
+    mistakes :func:`_os_case` and :func:`_ik_case` build besides."""
+    state = case.states[-1]
+    T = terms(model, state.q, state.qdot, state.t)
+    if law == "os":
+        return _os_expected(T, state, case.x_d[-1], case.xd_d[-1], case.xdd_d[-1], case.Kp, case.Kd)[0]
+    return _ik_expected(T, state, case)
+
+
 def _ik_case(model, case: Case):
     """At the case's tested state: IK + joint CT's torque, the J̇q̇ a torque implies, MuJoCo's J̇q̇
     at the reference, the IK offset a torque implies (where the reference is at rest) and the
@@ -399,7 +415,7 @@ def _ik_case(model, case: Case):
     q_d, qd_d, qdd_d = case.q_d[-1], case.qd_d[-1], case.qdd_d[-1]
     x_d, xd_d, xdd_d = case.x_d[-1], case.xd_d[-1], case.xdd_d[-1]
     Kp, Kd = case.Kp, case.Kd
-    expected = T.M @ (qdd_d + Kd * (qd_d - state.qdot) + Kp * (q_d - state.q)) + T.h
+    expected = _ik_expected(T, state, case)
     Td = terms(model, q_d, qd_d)
 
     def implied_jdq(tau):
@@ -525,11 +541,14 @@ def _other_laws_torque(probe: Probe, seed: int, fname: str) -> str | None:
     tracks the circle, and would otherwise earn the credit of a law never written. None too where
     the call fails: the run then says why."""
     own_check, still, own, other, label, other_label = {
-        "ct_op_torque": ("p2_osct", "arm", _os_case, _ik_case, "OS-CT", "IK + joint CT"),
-        "ct_ik_joint_torque": ("p2_ikct", "reference", _ik_case, _os_case, "IK + joint CT", "OS-CT"),
+        "ct_op_torque": ("p2_osct", "arm", "os", "ik", "OS-CT", "IK + joint CT"),
+        "ct_ik_joint_torque": ("p2_ikct", "reference", "ik", "os", "IK + joint CT", "OS-CT"),
     }[fname]
     model = arm_model()
-    torques = [(own(model, c)[0], other(model, c)[0], c) for c in tracking_cases(seed, own_check, still=still)]
+    torques = [
+        (_law_torque(model, c, own), _law_torque(model, c, other), c)
+        for c in tracking_cases(seed, own_check, still=still)
+    ]
     tau_own, tau_other, case = max(torques, key=lambda t: np.linalg.norm(t[0] - t[1]))
     try:
         tau = call_along(probe, fname, case, lambda k: (case.x_d[k], case.xd_d[k], case.xdd_d[k], case.Kp, case.Kd))
