@@ -105,6 +105,7 @@ class StudentController:
         self.name = getattr(fn, "__name__", "the controller")
         self.moving = len(args) == 1 and callable(args[0])
         self.trace = Trace()  # the states of the last run, to explain a divergence
+        self.before = (np.empty(0), np.empty(0))  # the state before each call, kept to see it changed
 
     def __call__(self, model, data):
         self.trace.record(data)
@@ -115,9 +116,14 @@ class StudentController:
         the arm's state (``e = data.qpos; e -= q_d``) is stopped with that reason: the run would
         otherwise go on from a state the law made up, and diverge as if its signs were wrong."""
         extra = self.args[0](float(data.time)) if self.moving else self.args
-        state = np.concatenate((data.qpos, data.qvel))
+        if self.before[0].shape != data.qpos.shape or self.before[1].shape != data.qvel.shape:
+            self.before = (np.empty_like(data.qpos), np.empty_like(data.qvel))  # once per model
+        self.before[0][:], self.before[1][:] = data.qpos, data.qvel
         tau = self.fn(model, data, *extra)
-        if not np.array_equal(state, np.concatenate((data.qpos, data.qvel)), equal_nan=True):
+        if not (
+            np.array_equal(self.before[0], data.qpos, equal_nan=True)
+            and np.array_equal(self.before[1], data.qvel, equal_nan=True)
+        ):
             raise StudentError(
                 f"{self.name} changed data.qpos or data.qvel, the arm's own state (an in-place operation such as "
                 "e = data.qpos; e -= q_d writes into it): compute with new arrays, e.g. e = q_d - data.qpos, or "
