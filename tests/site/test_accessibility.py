@@ -79,3 +79,26 @@ def test_videos_fit_a_phone(on_every_page, width):
     assert sum(len(v) for v in videos.values()) >= 4, "expected the Task 3 and Task 4 videos"
     cut = {page: v for page, v in videos.items() if any(x["past"] > 1 for x in v)}
     assert not cut, f"videos wider than their column in a {width} px window: {cut}"
+
+
+#: Every formula a reader would have to scroll sideways to read: a displayed one wider than its
+#: box, an inline one reaching past its paragraph; each with the start of its TeX.
+FORMULA_FIT_JS = """() => [...(window.MathJax?.startup?.document?.math ?? [])].map(item => {
+  const box = item.typesetRoot, math = box && box.firstElementChild;
+  if (!math) return null;
+  const r = math.getBoundingClientRect();
+  const room = (item.display ? box : box.parentElement.closest('p, li, dd, td, div')).getBoundingClientRect();
+  return r.right - room.right > 1 || room.left - r.left > 1
+    ? {tex: item.math.trim().replace(/\\s+/g, ' ').slice(0, 60), over: Math.round(r.width - room.width)}
+    : null;
+}).filter(x => x)"""
+
+
+@pytest.mark.parametrize("width", (320, 390))
+def test_formulas_fit_a_phone(on_every_page, width):
+    """Every formula reads without scrolling sideways at 320 CSS px (WCAG 2.1, 1.4.10 Reflow).
+    MathJax 3 breaks no line itself, so a formula wider than the column showed its start and
+    hid the rest behind a scroll bar: long ones are broken into lines in the source, and on a
+    phone a numbered one's number goes below it (course.css) to leave it the column's width."""
+    cut = {page: f for page, f in on_every_page(FORMULA_FIT_JS, width).items() if f}
+    assert not cut, f"formulas wider than the column in a {width} px window (over by px): {cut}"
