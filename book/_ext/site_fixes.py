@@ -1,4 +1,5 @@
-"""Two small fixes to the HTML the book's theme stack writes, so that pages load without errors.
+"""Small fixes to the HTML the book's theme stack writes: pages load without errors, and every
+part of them is reachable by landmark.
 
 * **Scripts added twice.** Some extensions (sphinx-thebe, sphinx-togglebutton) register inline
   configuration scripts while the builder already exists, and Sphinx then emits them twice in
@@ -16,6 +17,9 @@
   ``role="doc-biblioentry"``, a role that WAI-ARIA 1.2 deprecates and that is not a list item,
   so assistive technology sees a list with no items (axe-core: ``aria-required-children``,
   ``aria-deprecated-role``). Each entry becomes ``role="listitem"``.
+* **The course's title outside any landmark.** The sidebar's first item, the course title that
+  links to the home page, sat in no landmark, so a screen reader moving by landmarks never met
+  it (axe-core: ``region``). It becomes a navigation landmark named "Course home".
 """
 
 from __future__ import annotations
@@ -24,6 +28,9 @@ import re
 from pathlib import Path
 
 _BIBLIOENTRY = 'role="doc-biblioentry"'
+_TITLE_ITEM = re.compile(
+    r'(<div class="sidebar-primary-items__start sidebar-primary__section">\s*<div class="sidebar-primary-item")>'
+)
 _FONTAWESOME_JS = re.compile(r'\s*<script defer src="[^"]*_static/scripts/fontawesome\.js[^"]*"></script>')
 
 
@@ -51,14 +58,15 @@ def fix_page_context(app, pagename, templatename, context, doctree):
 
 
 def fix_built_pages(app, exc):
-    """``build-finished`` handler: remove the redundant Font Awesome script from every page, and
-    give bibliography entries the list-item role."""
+    """``build-finished`` handler: remove the redundant Font Awesome script from every page, give
+    bibliography entries the list-item role, and put the course title in a landmark."""
     if exc is not None or app.builder.format != "html":
         return
     out = Path(app.outdir)
     for page in out.rglob("*.html"):
         html = page.read_text(encoding="utf-8")
         lighter = _FONTAWESOME_JS.sub("", html).replace(_BIBLIOENTRY, 'role="listitem"')
+        lighter = _TITLE_ITEM.sub(r'\1 role="navigation" aria-label="Course home">', lighter, count=1)
         if lighter != html:
             page.write_text(lighter, encoding="utf-8")
     for name in ("fontawesome.js", "fontawesome.js.map"):

@@ -102,3 +102,19 @@ def test_formulas_fit_a_phone(on_every_page, width):
     phone a numbered one's number goes below it (course.css) to leave it the column's width."""
     cut = {page: f for page, f in on_every_page(FORMULA_FIT_JS, width).items() if f}
     assert not cut, f"formulas wider than the column in a {width} px window (over by px): {cut}"
+
+
+@pytest.mark.parametrize("page", toc_pages())
+def test_all_content_sits_in_landmarks(browser, server, axe, page):
+    """axe-core's ``region`` rule (a best practice beyond WCAG AA): a screen reader that moves
+    by landmarks meets every part of the page. The course title in the sidebar sat in none
+    (book/_ext/site_fixes.py)."""
+    tab = browser.new_page(viewport=VIEWPORT)
+    try:
+        tab.goto(f"{server}/{page}.html", wait_until="load")
+        only_region = {"runOnly": {"type": "rule", "values": ["region"]}, "resultTypes": ["violations"]}
+        results = axe.run(tab, options=only_region)
+    finally:
+        tab.close()
+    violations = results.response["violations"]
+    assert not violations, f"{page}: " + " | ".join(_describe(v) for v in violations)
