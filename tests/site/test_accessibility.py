@@ -118,3 +118,23 @@ def test_all_content_sits_in_landmarks(browser, server, axe, page):
         tab.close()
     violations = results.response["violations"]
     assert not violations, f"{page}: " + " | ".join(_describe(v) for v in violations)
+
+
+#: Each table's width and the room its scrolling box gives it [px].
+TABLE_FIT_JS = """() => [...document.querySelectorAll('main table')].map(t => ({
+  head: (t.querySelector('th') || t).textContent.trim().slice(0, 30),
+  width: t.scrollWidth,
+  room: (t.closest('.pst-scrollable-table-container') || t.parentElement).clientWidth,
+}))"""
+
+
+@pytest.mark.parametrize("width", (320, 390))
+def test_tables_fit_a_phone(on_every_page, width):
+    """The home page's map of the lab and Task 4's summary fit the column on a phone: at 320 px
+    the map hid its last column, the Colab links, behind a scroll bar (course.css halves the
+    cells' padding there, and the Colab links sit beside each part's name)."""
+    tables = on_every_page(TABLE_FIT_JS, width)
+    assert sum(len(t) for t in tables.values()) >= 2, "expected the home page's and Task 4's tables"
+    wide = {page: [t for t in ts if t["width"] > t["room"] + 1] for page, ts in tables.items()}
+    wide = {page: ts for page, ts in wide.items() if ts}
+    assert not wide, f"tables wider than the column in a {width} px window: {wide}"
