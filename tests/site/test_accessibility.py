@@ -2,8 +2,9 @@
 
 axe-core comes with ``axe-playwright-python`` (it ships ``axe.min.js``; nothing is downloaded).
 Each page is loaded once in each colour scheme (the site follows the system's light or dark
-mode), axe runs with the WCAG 2.0/2.1 A and AA rule tags, and every violation is reported with
-the rule, its impact and the first offending elements, so the message says what to fix.
+mode), axe runs with the WCAG 2.0/2.1 A and AA rule tags and the ``region`` best practice, and
+every violation is reported with the rule, its impact and the first offending elements, so the
+message says what to fix.
 Reflow (1.4.10), which axe does not check, is tested on phone-sized windows.
 """
 
@@ -13,6 +14,14 @@ import pytest
 from sitetools import SUMMARY, VIEWPORT, dump_json, toc_pages
 
 WCAG_TAGS = ["wcag2a", "wcag2aa", "wcag21a", "wcag21aa"]
+#: The WCAG rules, and one best practice beyond them: ``region``, every part of a page in a
+#: landmark, so that a screen reader moving by landmarks meets it all (the course title in the
+#: sidebar sat in none: book/_ext/site_fixes.py).
+AXE_OPTIONS = {
+    "runOnly": {"type": "tag", "values": WCAG_TAGS},
+    "rules": {"region": {"enabled": True}},
+    "resultTypes": ["violations"],
+}
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +52,7 @@ def test_page_meets_wcag21_aa(browser, server, axe, page, scheme):
         # their colours over 0.15 s: axe must see the end state, not a frame of the fade.
         tab.wait_for_function("scheme => document.documentElement.dataset.theme === scheme", arg=scheme)
         tab.add_style_tag(content="*, *::before, *::after { transition: none !important; }")
-        results = axe.run(tab, options={"runOnly": {"type": "tag", "values": WCAG_TAGS}, "resultTypes": ["violations"]})
+        results = axe.run(tab, options=AXE_OPTIONS)
     finally:
         context.close()
     violations = results.response["violations"]
@@ -102,22 +111,6 @@ def test_formulas_fit_a_phone(on_every_page, width):
     phone a numbered one's number goes below it (course.css) to leave it the column's width."""
     cut = {page: f for page, f in on_every_page(FORMULA_FIT_JS, width).items() if f}
     assert not cut, f"formulas wider than the column in a {width} px window (over by px): {cut}"
-
-
-@pytest.mark.parametrize("page", toc_pages())
-def test_all_content_sits_in_landmarks(browser, server, axe, page):
-    """axe-core's ``region`` rule (a best practice beyond WCAG AA): a screen reader that moves
-    by landmarks meets every part of the page. The course title in the sidebar sat in none
-    (book/_ext/site_fixes.py)."""
-    tab = browser.new_page(viewport=VIEWPORT)
-    try:
-        tab.goto(f"{server}/{page}.html", wait_until="load")
-        only_region = {"runOnly": {"type": "rule", "values": ["region"]}, "resultTypes": ["violations"]}
-        results = axe.run(tab, options=only_region)
-    finally:
-        tab.close()
-    violations = results.response["violations"]
-    assert not violations, f"{page}: " + " | ".join(_describe(v) for v in violations)
 
 
 #: Each table's width and the room its scrolling box gives it [px].
