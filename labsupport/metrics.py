@@ -224,16 +224,28 @@ def rotation_error(xmat, quat_d, out=None, work=None) -> np.ndarray:
     try:
         mujoco.mju_mat2Quat(quat, xmat)  # q of R
     except TypeError:  # a 3x3 matrix or a list: as 9 floats, row-major
-        mujoco.mju_mat2Quat(quat, np.asarray(xmat, dtype=float).reshape(9))
+        mujoco.mju_mat2Quat(quat, _nine_floats(xmat))
     try:
         mujoco.mju_negQuat(quat_d_inv, quat_d)  # q_d^-1
     except TypeError:
-        raise ValueError(f"quat_d must be a quaternion (w, x, y, z) of 4 floats, got {quat_d!r}") from None
+        raise ValueError(f"quat_d must be a quaternion (w, x, y, z), 4 floats, got {validate.short(quat_d)}") from None
     if not abs(mujoco.mju_normalize4(quat_d_inv) - 1.0) <= 1e-6:  # its norm (NaN fails too)
-        raise ValueError(f"quat_d must be a unit quaternion (w, x, y, z), got {quat_d!r}")
+        raise ValueError(f"quat_d must be a unit quaternion (w, x, y, z), got {validate.short(quat_d)}")
     mujoco.mju_mulQuat(quat, quat, quat_d_inv)  # q q_d^-1
     mujoco.mju_quat2Vel(out, quat, 1.0)  # its rotation vector
     return out
+
+
+def _nine_floats(xmat) -> np.ndarray:
+    """An orientation given as a 3x3 matrix (or a list) as the 9 floats MuJoCo reads, row-major,
+    or a ``ValueError`` that says what :func:`rotation_error` takes."""
+    values = validate.floats(xmat)
+    if values is None or values.size != 9:
+        got = "not numbers" if values is None else f"shape {values.shape}"
+        raise ValueError(
+            f"xmat must be a rotation matrix, 3x3 or 9 numbers row-major (data.site_xmat[site]), got {got}"
+        )
+    return np.ascontiguousarray(values).reshape(9)
 
 
 def _after(log, after: float) -> np.ndarray:

@@ -368,6 +368,14 @@ def test_orientation_measures_name_a_missing_site_and_a_nan_target():
         metrics.rms_orientation_error(log, (1.0, 0.0, 0.0, 0.0))
     with pytest.raises(ValueError, match="unit quaternion"):
         metrics.rotation_error(np.eye(3), (np.nan, 0.0, 0.0, 0.0))
+    # an orientation of the wrong size ended in NumPy's "cannot reshape array of size 4"
+    for xmat, got in ((np.eye(2), "shape \\(2, 2\\)"), ("R", "not numbers"), ([[1, 0], [0, 1, 0]], "not numbers")):
+        with pytest.raises(ValueError, match=f"xmat must be a rotation matrix, 3x3 or 9 numbers.*got {got}"):
+            metrics.rotation_error(xmat, (1.0, 0.0, 0.0, 0.0))
+    # the same orientation as a 3x3 list and as 9 numbers: the same error, a quarter turn about z
+    quarter = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+    for xmat in (quarter, np.ravel(quarter), np.asarray(quarter).T.copy().T):
+        assert np.allclose(metrics.rotation_error(xmat, (1.0, 0.0, 0.0, 0.0)), [0.0, 0.0, np.pi / 2])
 
 
 def test_the_analytic_plant_names_a_torque_that_is_not_a_function_of_t_and_state():
