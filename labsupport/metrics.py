@@ -228,7 +228,8 @@ def rotation_error(xmat, quat_d, out=None, work=None) -> np.ndarray:
     try:
         mujoco.mju_negQuat(quat_d_inv, quat_d)  # q_d^-1
     except TypeError:
-        raise ValueError(f"quat_d must be a quaternion (w, x, y, z), 4 floats, got {validate.short(quat_d)}") from None
+        got = validate.short(quat_d)
+        raise ValueError(f"quat_d must be a quaternion (w, x, y, z) of 4 floats, got {got}") from None
     if not abs(mujoco.mju_normalize4(quat_d_inv) - 1.0) <= 1e-6:  # its norm (NaN fails too)
         raise ValueError(f"quat_d must be a unit quaternion (w, x, y, z), got {validate.short(quat_d)}")
     mujoco.mju_mulQuat(quat, quat, quat_d_inv)  # q q_d^-1
