@@ -20,6 +20,11 @@ part of them is reachable by landmark.
 * **The course's title outside any landmark.** The sidebar's first item, the course title that
   links to the home page, sat in no landmark, so a screen reader moving by landmarks never met
   it (axe-core: ``region``). It becomes a navigation landmark named "Course home".
+* **Punctuation alone at the start of a line.** A browser may break a line between an inline
+  formula (MathJax draws it as one inline box) and the comma, colon or bracket written against
+  it, so a line could begin with a lone ``,`` or end with a lone ``(``. Each inline formula with
+  punctuation against it is wrapped, with that punctuation, in a ``span.math-nobreak``, which
+  ``course.css`` keeps on one line.
 """
 
 from __future__ import annotations
@@ -31,6 +36,9 @@ _BIBLIOENTRY = 'role="doc-biblioentry"'
 _TITLE_ITEM = re.compile(
     r'(<div class="sidebar-primary-items__start sidebar-primary__section">\s*<div class="sidebar-primary-item")>'
 )
+#: An inline formula as Sphinx writes it (its TeX, HTML-escaped, holds no tag), with an opening
+#: bracket just before it and closing punctuation just after it.
+_INLINE_MATH = re.compile(r'([(\[]?)(<span class="math notranslate nohighlight">[^<]*</span>)([,.;:!?)\]]*)')
 _FONTAWESOME_JS = re.compile(r'\s*<script defer src="[^"]*_static/scripts/fontawesome\.js[^"]*"></script>')
 
 
@@ -40,6 +48,14 @@ def _script_key(script) -> tuple:
     # copy), so the two compare unequal in Sphinx; treat both as "inline".
     filename = getattr(script, "filename", str(script)) or ""
     return (str(filename), getattr(script, "priority", 500), tuple(sorted(attributes.items())))
+
+
+def _math_with_its_punctuation(found: re.Match) -> str:
+    """An inline formula and the punctuation against it, in one span that does not break."""
+    before, formula, after = found.groups()
+    if not before and not after:
+        return formula
+    return f'<span class="math-nobreak">{before}{formula}{after}</span>'
 
 
 def fix_page_context(app, pagename, templatename, context, doctree):
@@ -59,7 +75,8 @@ def fix_page_context(app, pagename, templatename, context, doctree):
 
 def fix_built_pages(app, exc):
     """``build-finished`` handler: remove the redundant Font Awesome script from every page, give
-    bibliography entries the list-item role, and put the course title in a landmark."""
+    bibliography entries the list-item role, put the course title in a landmark, and keep each
+    inline formula on one line with the punctuation against it."""
     if exc is not None or app.builder.format != "html":
         return
     out = Path(app.outdir)
@@ -67,6 +84,7 @@ def fix_built_pages(app, exc):
         html = page.read_text(encoding="utf-8")
         lighter = _FONTAWESOME_JS.sub("", html).replace(_BIBLIOENTRY, 'role="listitem"')
         lighter = _TITLE_ITEM.sub(r'\1 role="navigation" aria-label="Course home">', lighter, count=1)
+        lighter = _INLINE_MATH.sub(_math_with_its_punctuation, lighter)
         if lighter != html:
             page.write_text(lighter, encoding="utf-8")
     for name in ("fontawesome.js", "fontawesome.js.map"):

@@ -95,7 +95,8 @@ def test_videos_fit_a_phone(on_every_page, width):
 FORMULA_FIT_JS = """() => [...(window.MathJax?.startup?.document?.math ?? [])].map(item => {
   const box = item.typesetRoot, math = box && box.firstElementChild;
   if (!math) return null;
-  const r = math.getBoundingClientRect();
+  // an inline formula is measured with the punctuation kept on its line (span.math-nobreak)
+  const r = (item.display ? math : box.closest('span.math-nobreak') || math).getBoundingClientRect();
   const room = (item.display ? box : box.parentElement.closest('p, li, dd, td, div')).getBoundingClientRect();
   return r.right - room.right > 1 || room.left - r.left > 1
     ? {tex: item.math.trim().replace(/\\s+/g, ' ').slice(0, 60), over: Math.round(r.width - room.width)}
@@ -111,6 +112,37 @@ def test_formulas_fit_a_phone(on_every_page, width):
     phone a numbered one's number goes below it (course.css) to leave it the column's width."""
     cut = {page: f for page, f in on_every_page(FORMULA_FIT_JS, width).items() if f}
     assert not cut, f"formulas wider than the column in a {width} px window (over by px): {cut}"
+
+
+#: Punctuation written against an inline formula that a line break parted from it: a line
+#: starting with the "," or ")" after a formula, or ending with the "(" before one; each with
+#: the start of the formula's TeX and the text on the far side of the break.
+ORPHAN_PUNCTUATION_JS = """() => [...(window.MathJax?.startup?.document?.math ?? [])].map(item => {
+  const box = item.typesetRoot;
+  if (item.display || !box || !box.getBoundingClientRect().width) return null;
+  const r = box.getBoundingClientRect(), span = box.closest('span.math') || box;
+  const tex = item.math.trim().replace(/\\s+/g, ' ').slice(0, 50);
+  const char = (node, k) => { const g = document.createRange(); g.setStart(node, k); g.setEnd(node, k + 1);
+                              return g.getBoundingClientRect(); };
+  const next = span.nextSibling, prev = span.previousSibling;
+  // on the formula's line, what follows it starts right of it and what precedes it ends left of it
+  if (next?.nodeType === 3 && /^[,.;:!?)\\]]/.test(next.textContent) && char(next, 0).left < r.right - 1)
+    return {tex, after: next.textContent.slice(0, 10)};
+  if (prev?.nodeType === 3 && /[(\\[]$/.test(prev.textContent)
+      && char(prev, prev.textContent.length - 1).right > r.left + 1)
+    return {tex, before: prev.textContent.slice(-10)};
+  return null;
+}).filter(x => x)"""
+
+
+@pytest.mark.parametrize("width", (320, 390, 1280))
+def test_no_punctuation_parted_from_its_formula(on_every_page, width):
+    """A browser may break a line between an inline formula and the comma or bracket written
+    against it: lines began with a lone "," or ":" and ended with a lone "(" (22 such breaks on
+    7 pages at 320, 390, 768 and 1280 px). ``site_fixes.py`` keeps each formula on one line
+    with its punctuation."""
+    parted = {page: f for page, f in on_every_page(ORPHAN_PUNCTUATION_JS, width).items() if f}
+    assert not parted, f"punctuation parted from its formula in a {width} px window: {parted}"
 
 
 #: Each table's width and the room its scrolling box gives it [px].
