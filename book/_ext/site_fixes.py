@@ -20,6 +20,10 @@ part of them is reachable by landmark.
 * **The course's title outside any landmark.** The sidebar's first item, the course title that
   links to the home page, sat in no landmark, so a screen reader moving by landmarks never met
   it (axe-core: ``region``). It becomes a navigation landmark named "Course home".
+* **Numbers in Python's exponent notation.** A number glued into the prose with a format such as
+  ``:.1e`` read as Python prints it, ``1.4e-09``. It becomes the formula
+  :math:`1.4 \\times 10^{-9}`, typeset (and spoken) like the page's other formulas, in bold
+  like every other glued number.
 * **Punctuation alone at the start of a line.** A browser may break a line between an inline
   formula (MathJax draws it as one inline box) and the comma, colon or bracket written against
   it, so a line could begin with a lone ``,`` or end with a lone ``(``. Each inline formula with
@@ -39,6 +43,8 @@ _TITLE_ITEM = re.compile(
 #: An inline formula as Sphinx writes it (its TeX, HTML-escaped, holds no tag), with an opening
 #: bracket just before it and closing punctuation just after it.
 _INLINE_MATH = re.compile(r'([(\[]?)(<span class="math notranslate nohighlight">[^<]*</span>)([,.;:!?)\]]*)')
+#: A glued number written by Python's ``e`` format: mantissa, sign and exponent.
+_GLUED_EXPONENT = re.compile(r'<span class="pasted-text">(-?\d+(?:\.\d+)?)e([-+]?)(\d+)</span>')
 _FONTAWESOME_JS = re.compile(r'\s*<script defer src="[^"]*_static/scripts/fontawesome\.js[^"]*"></script>')
 
 
@@ -48,6 +54,14 @@ def _script_key(script) -> tuple:
     # copy), so the two compare unequal in Sphinx; treat both as "inline".
     filename = getattr(script, "filename", str(script)) or ""
     return (str(filename), getattr(script, "priority", 500), tuple(sorted(attributes.items())))
+
+
+def _power_of_ten(found: re.Match) -> str:
+    """``1.4e-09`` as the inline formula :math:`\\mathbf{1.4 \\times 10^{-9}}`."""
+    mantissa, sign, exponent = found.groups()
+    power = ("-" if sign == "-" else "") + str(int(exponent))
+    tex = rf"\mathbf{{{mantissa} \times 10^{{{power}}}}}"  # bold, as glued numbers are
+    return f'<span class="math notranslate nohighlight">\\({tex}\\)</span>'
 
 
 def _math_with_its_punctuation(found: re.Match) -> str:
@@ -75,8 +89,9 @@ def fix_page_context(app, pagename, templatename, context, doctree):
 
 def fix_built_pages(app, exc):
     """``build-finished`` handler: remove the redundant Font Awesome script from every page, give
-    bibliography entries the list-item role, put the course title in a landmark, and keep each
-    inline formula on one line with the punctuation against it."""
+    bibliography entries the list-item role, put the course title in a landmark, write glued
+    numbers in exponent notation as powers of ten, and keep each inline formula on one line with
+    the punctuation against it."""
     if exc is not None or app.builder.format != "html":
         return
     out = Path(app.outdir)
@@ -84,6 +99,7 @@ def fix_built_pages(app, exc):
         html = page.read_text(encoding="utf-8")
         lighter = _FONTAWESOME_JS.sub("", html).replace(_BIBLIOENTRY, 'role="listitem"')
         lighter = _TITLE_ITEM.sub(r'\1 role="navigation" aria-label="Course home">', lighter, count=1)
+        lighter = _GLUED_EXPONENT.sub(_power_of_ten, lighter)
         lighter = _INLINE_MATH.sub(_math_with_its_punctuation, lighter)
         if lighter != html:
             page.write_text(lighter, encoding="utf-8")

@@ -1,8 +1,10 @@
-"""No built page shows MyST role syntax to a reader.
+"""No built page shows MyST role syntax, or a number in Python's exponent notation, to a reader.
 
 A role such as ``{glue:text}`name``` only works in running text: inside a ``$$`` math block,
-for instance, it reaches the page as raw characters, and MathJax typesets them. Every built page
-is searched outside code (where showing the syntax is intended).
+for instance, it reaches the page as raw characters, and MathJax typesets them. A number glued
+with a format such as ``:.1e`` reads ``1.4e-09``; the site writes it as a power of ten
+(``book/_ext/site_fixes.py``). Every built page is searched outside code and printed output
+(where such text is intended).
 """
 
 from __future__ import annotations
@@ -16,12 +18,27 @@ from sitetools import require_site, toc_pages
 RAW_ROLE = re.compile(r"\{(glue|glue:text|glue:figure|glue:any|glue:md|numref|eq|ref|doc|cite)\}`")
 
 
-def raw_roles(html: str) -> list[str]:
+EXPONENT = re.compile(r"(?<![\w.])-?\d+(?:\.\d+)?e[-+]?\d+\b")
+
+
+def _prose(html: str) -> str:
+    """The text a reader reads as prose: code, printed output and formulas' TeX left out."""
     soup = BeautifulSoup(html, "html.parser")
-    for code in soup.select("pre, code, script, style"):
+    for code in soup.select("pre, code, script, style, span.math, div.math"):
         code.decompose()
-    text = soup.get_text(" ")
-    return [text[max(0, m.start() - 40) : m.end() + 40].strip() for m in RAW_ROLE.finditer(text)]
+    return soup.get_text(" ")
+
+
+def _around(text: str, pattern: re.Pattern) -> list[str]:
+    return [text[max(0, m.start() - 40) : m.end() + 40].strip() for m in pattern.finditer(text)]
+
+
+def raw_roles(html: str) -> list[str]:
+    return _around(_prose(html), RAW_ROLE)
+
+
+def exponent_numbers(html: str) -> list[str]:
+    return _around(_prose(html), EXPONENT)
 
 
 def test_raw_roles_are_found():
@@ -29,8 +46,22 @@ def test_raw_roles_are_found():
     assert not raw_roles("<p>x = 3.0</p><pre>{glue:text}`a`</pre>")
 
 
+def test_exponent_numbers_are_found():
+    found = exponent_numbers("<p>within <span>1.4e-09</span> mm, and 4e-13 deg</p>")
+    assert len(found) == 2 and "1.4e-09" in found[0] and "4e-13" in found[1]
+    assert not exponent_numbers("<p>the constant <code>1e6</code>, <span class='math'>1e-9</span></p><pre>2e-09</pre>")
+    assert not exponent_numbers("<p>time step 2e, see Eq. 3e-ish, sensor e-3, file v1.2e</p>")
+
+
 @pytest.mark.parametrize("page", toc_pages())
 def test_no_raw_role_syntax(page):
     html = (require_site() / f"{page}.html").read_text(encoding="utf-8")
     found = raw_roles(html)
     assert not found, f"{page} shows MyST role syntax as text (move the role out of math or code): {found}"
+
+
+@pytest.mark.parametrize("page", toc_pages())
+def test_no_number_in_exponent_notation(page):
+    html = (require_site() / f"{page}.html").read_text(encoding="utf-8")
+    found = exponent_numbers(html)
+    assert not found, f"{page} writes numbers in Python's exponent notation in its prose: {found}"
