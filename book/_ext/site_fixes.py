@@ -24,6 +24,9 @@ part of them is reachable by landmark.
   ``:.1e`` read as Python prints it, ``1.4e-09``. It becomes the formula
   :math:`1.4 \\times 10^{-9}`, typeset (and spoken) like the page's other formulas, in bold
   like every other glued number.
+* **No icon on the home page's redirect.** The site's root ``index.html`` only sends the browser
+  on to the first page, and names no icon, so the browser asked the server for
+  ``/favicon.ico`` (a 404) before leaving it. It names the course's icon, as every page does.
 * **Punctuation alone at the start of a line.** A browser may break a line between an inline
   formula (MathJax draws it as one inline box) and the comma, colon or bracket written against
   it, so a line could begin with a lone ``,`` or end with a lone ``(``. Each inline formula with
@@ -103,8 +106,19 @@ def fix_built_pages(app, exc):
         lighter = _INLINE_MATH.sub(_math_with_its_punctuation, lighter)
         if lighter != html:
             page.write_text(lighter, encoding="utf-8")
+    _icon_on_the_redirect(out / "index.html", app.config.html_favicon)
     for name in ("fontawesome.js", "fontawesome.js.map"):
         (out / "_static" / "scripts" / name).unlink(missing_ok=True)
+
+
+def _icon_on_the_redirect(redirect: Path, favicon: str | None) -> None:
+    """Name the course's icon (which Sphinx copies into ``_static``) in the root redirect page."""
+    if not favicon or not redirect.is_file():
+        return
+    html = redirect.read_text(encoding="utf-8")
+    if 'http-equiv="Refresh"' in html and 'rel="icon"' not in html:
+        link = f'<link rel="icon" href="_static/{Path(favicon).name}" />\n'
+        redirect.write_text(link + html, encoding="utf-8")
 
 
 def setup(app):

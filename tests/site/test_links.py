@@ -110,3 +110,36 @@ def test_link_checker_catches_a_broken_link(tmp_path):
     assert checked == 4
     assert len(problems) == 2
     assert any("gone" in p for p in problems) and any("missing.png" in p for p in problems)
+
+
+def test_every_page_names_its_icon():
+    """Each page names the course's icon, so a browser shows it in the tab and does not ask the
+    server for ``/favicon.ico`` (a 404 on every first visit, outside the site on GitHub Pages);
+    the link checker above finds the file."""
+    site = require_site()
+    missing = [
+        str(page.relative_to(site))
+        for page in site.rglob("*.html")
+        if page.parent.name != "_static"  # the theme's template fragments, not pages
+        and not _Icon.declared(page.read_text(encoding="utf-8"))
+    ]
+    assert not missing, f"pages without <link rel='icon'>: {missing}"
+
+
+class _Icon(HTMLParser):
+    """Whether a page has a ``<link rel="icon" href=...>``."""
+
+    def __init__(self):
+        super().__init__(convert_charrefs=True)
+        self.found = False
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        if tag == "link" and "icon" in (attrs.get("rel") or "").split() and attrs.get("href"):
+            self.found = True
+
+    @classmethod
+    def declared(cls, html: str) -> bool:
+        parser = cls()
+        parser.feed(html)
+        return parser.found
