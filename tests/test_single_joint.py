@@ -457,3 +457,32 @@ def test_the_saturation_measures_check_what_they_are_given():
     with pytest.raises(ValueError, match="applied must hold one exerted torque per step and actuator"):
         metrics.peak_torque(log, applied[:, :1])
     np.testing.assert_array_equal(metrics.peak_torque(log, applied), [1.0, 1.0])
+
+
+def test_task1_try_it_predictions_hold():
+    """Task 1's "Try it" box asks the student to add gravity compensation to PD on the sinusoid
+    and lists what they will see; a law written as the box says must show each of them."""
+    vertical = SingleJoint(M=0.5, m=1.0, r=0.1, b=0.1, g=9.81)
+    wrong = SingleJoint(M=0.5, m=1.0, r=0.08, b=0.1, g=9.81)
+    fb, _ = gains.spec_gains(vertical.M, vertical.b, 5.0, 2.0)
+
+    def pd_gravity_torque(theta, theta_dot, theta_d, theta_dot_d, Kp, Kd, arm):
+        return Kp * (theta_d - theta) + Kd * (theta_dot_d - theta_dot) + arm.m * arm.g * arm.r * np.cos(theta)
+
+    def error_deg(torque):
+        log = vertical.simulate(torque, 4 * np.pi, state0=sinusoid(0.0)[:2])
+        return np.degrees(sinusoid(log.t).pos - log.q[:, 0])
+
+    def ref(t):
+        return sinusoid(t).pos, sinusoid(t).vel
+
+    pd = error_deg(lambda t, x: pd_torque(x[0], x[1], *ref(t), *fb))
+    pdg = error_deg(lambda t, x: pd_gravity_torque(x[0], x[1], *ref(t), *fb, vertical))
+    pdg_wrong = error_deg(lambda t, x: pd_gravity_torque(x[0], x[1], *ref(t), *fb, wrong))
+    ct_wrong = error_deg(lambda t, x: computed_torque(wrong, x[0], x[1], *sinusoid(t), *fb))
+    ct_exact = error_deg(lambda t, x: computed_torque(vertical, x[0], x[1], *sinusoid(t), *fb))
+    assert pd.min() >= 0.0 and pd.max() > 10  # PD alone: the link stays below the reference (the sag)
+    assert abs(pdg.max() + pdg.min()) < 1e-3 * pdg.max()  # the sag is gone: even about zero
+    assert metrics.rms(pdg) > 1.5 * metrics.rms(ct_wrong)  # but above computed torque's error
+    assert np.abs(ct_exact).max() < 1e-4  # computed torque with the exact model: zero
+    assert pdg_wrong.max() > 1.5 * -pdg_wrong.min() > 0  # the wrong r̃: no longer even
