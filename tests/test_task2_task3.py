@@ -199,6 +199,50 @@ def test_task3_2_residual_explained_and_removed(make):
     assert np.all(both <= 0.1) and np.all(both < 0.005)
 
 
+def test_task3_try_it_predictions_hold():
+    """Task 3's "Try it" box: OS-CT written without its J̇q̇ term, started on the path and logged
+    at the same instant, tracks the circle after the start-up with an RMS error close to that of
+    |J̇q̇|/K_p (instead of micrometres), and doubling ω_n cuts it about fourfold. (Instant by
+    instant the two differ by up to a factor of two: the error lags the term that drives it.)"""
+    from labsupport.dynamics import jacobian_solve, mass_times, site_jacobian, site_jdot_qdot
+
+    def os_ct_without_jdot_qdot(model, data, site, x_d, xdot_d, xddot_d, Kp, Kd):
+        x = data.site_xpos[site, :2]
+        J = site_jacobian(model, data, site)[:2]
+        xddot = xddot_d + Kd * (xdot_d - J @ data.qvel) + Kp * (x_d - x)
+        return mass_times(model, data, jacobian_solve(J, xddot)) + data.qfrc_bias
+
+    def run(wn):
+        model, data = load_model("planar_2r")
+        site, (Kp, Kd) = model.site("end_effector").id, gains.ct_gains(wn, 1.0)
+        ref = trajectories.sample(CIRCLE, model.opt.timestep, 12.0)
+        q0 = k2.inverse_kinematics(CIRCLE(0.0).pos, branch="up")
+        log = sim.simulate(
+            model,
+            data,
+            lambda m, d: os_ct_without_jdot_qdot(m, d, site, *ref.at(d.time), Kp, Kd),
+            12.0,
+            q0=q0,
+            qdot0=np.linalg.solve(k2.jacobian(q0), CIRCLE(0.0).vel),
+            site="end_effector",
+            reference=CIRCLE,
+            log_after_step=False,
+        )
+        after = np.flatnonzero(log.t >= 2.0)[::25]
+        predicted = []
+        for k in after:
+            data.qpos[:], data.qvel[:] = log.q[k], log.qdot[k]
+            mujoco.mj_forward(model, data)
+            predicted.append(np.linalg.norm(site_jdot_qdot(model, data, site)[:2]) / Kp)
+        return np.linalg.norm(log.err[after], axis=1), np.array(predicted)
+
+    error, predicted = run(8.0)
+    assert metrics.rms(error) == pytest.approx(metrics.rms(predicted), rel=0.1)
+    assert 0.2e-3 < error.min() and error.max() < 2e-3  # of the order of a millimetre
+    faster, _ = run(16.0)
+    assert metrics.rms(error) / metrics.rms(faster) == pytest.approx(4.0, rel=0.15)
+
+
 def test_velocity_transient_matches_closed_form():
     """Starting at rest, the y error is the critically damped response to e'(0) = -|x_d'(0)|:
     e(t) = -v t e^{-wn t}; its RMS over 12 s is about 1 mm."""
