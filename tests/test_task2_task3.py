@@ -89,6 +89,40 @@ def test_task2_feedback_alone_is_much_worse():
     assert pd_only > 4 * mismatched
 
 
+def test_task2_try_it_predictions_hold():
+    """Task 2's "Try it" box: computed torque with the wrong model plus an integral term, the
+    integral kept by the controller. With K_i = K_p the second period's mean error is gone and
+    the RMS falls well below the offset's, but not to zero; past the Routh-Hurwitz bound
+    K_i < (b + K_d) K_p / M the error grows, below it it decays."""
+    (Kp, Kd), _ = gains.spec_gains(0.5, 0.1, 5.0, 2.0)
+    wrong = SingleJoint(r=0.08, g=9.81)
+    bound = (0.1 + Kd) * Kp / 0.5
+
+    def run(Ki):
+        model, data = load_model("single_joint")
+        dt, integral = model.opt.timestep, np.zeros(1)
+
+        def controller(model, data):
+            ref = sinusoid(data.time)
+            integral[0] += (ref.pos - data.qpos[0]) * dt
+            return np.array([computed_torque(wrong, data.qpos[0], data.qvel[0], *ref, Kp, Kd) + Ki * integral[0]])
+
+        r0 = sinusoid(0.0)
+        log = sim.simulate(model, data, controller, 4 * np.pi, q0=[r0.pos], qdot0=[r0.vel], torque_limit=20.0)
+        error = np.degrees(sinusoid(log.t).pos - log.q[:, 0])
+        first, second = log.t < 2 * np.pi, log.t >= 2 * np.pi
+        return metrics.rms(error), metrics.rms(error[first]), metrics.rms(error[second]), error[second].mean()
+
+    rms_p, _, _, mean_p = run(0.0)
+    rms_i, _, _, mean_i = run(Kp)
+    assert mean_p > 2.0 and abs(mean_i) < 0.05  # the offset is gone...
+    assert 0.1 * rms_p < rms_i < 0.4 * rms_p  # ...the error shrinks, and stays
+    _, first, second, _ = run(1.2 * bound)
+    assert second > 1.2 * first  # past the bound it grows
+    _, first, second, _ = run(0.8 * bound)
+    assert second < first  # below it, it decays
+
+
 # --- Task 3.1: reaching -----------------------------------------------------------------
 
 
