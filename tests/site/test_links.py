@@ -25,12 +25,13 @@ EXTERNAL_SCHEMES = ("http:", "https:", "mailto:", "data:", "javascript:", "tel:"
 
 
 class _Refs(HTMLParser):
-    """Collects the references and the element ids of one HTML page."""
+    """Collects the references and the element ids of one HTML page, and whether it names an icon."""
 
     def __init__(self):
         super().__init__(convert_charrefs=True)
         self.refs: list[tuple[str, str]] = []
         self.ids: set[str] = set()
+        self.icon = False
 
     def handle_starttag(self, tag, attrs):
         attrs = dict(attrs)
@@ -38,6 +39,8 @@ class _Refs(HTMLParser):
             self.ids.add(attrs["id"])
         if tag == "a" and attrs.get("name"):
             self.ids.add(attrs["name"])
+        if tag == "link" and "icon" in (attrs.get("rel") or "").split() and attrs.get("href"):
+            self.icon = True
         for name, value in attrs.items():
             if (tag, name) in REFERENCES and value:
                 self.refs.append((tag, value.strip()))
@@ -117,29 +120,5 @@ def test_every_page_names_its_icon():
     server for ``/favicon.ico`` (a 404 on every first visit, outside the site on GitHub Pages);
     the link checker above finds the file."""
     site = require_site()
-    missing = [
-        str(page.relative_to(site))
-        for page in site.rglob("*.html")
-        if page.parent.name != "_static"  # the theme's template fragments, not pages
-        and not _Icon.declared(page.read_text(encoding="utf-8"))
-    ]
+    missing = [str(page.relative_to(site)) for page in site_pages(site) if not parse(page).icon]
     assert not missing, f"pages without <link rel='icon'>: {missing}"
-
-
-class _Icon(HTMLParser):
-    """Whether a page has a ``<link rel="icon" href=...>``."""
-
-    def __init__(self):
-        super().__init__(convert_charrefs=True)
-        self.found = False
-
-    def handle_starttag(self, tag, attrs):
-        attrs = dict(attrs)
-        if tag == "link" and "icon" in (attrs.get("rel") or "").split() and attrs.get("href"):
-            self.found = True
-
-    @classmethod
-    def declared(cls, html: str) -> bool:
-        parser = cls()
-        parser.feed(html)
-        return parser.found
