@@ -16,7 +16,7 @@ from labsupport import gains, metrics, sim, trajectories
 from labsupport.controllers import joint_space as js
 from labsupport.controllers import operational_space as osc
 from labsupport.controllers.single_joint import computed_torque, pd_torque
-from labsupport.dynamics import mass_matrix
+from labsupport.dynamics import jacobian_solve, mass_matrix, mass_times, site_jacobian, site_jdot_qdot
 from labsupport.kinematics import planar_2r as k2
 from labsupport.plants import SingleJoint, load_model
 from labsupport.trajectories import circle_2d, sinusoid
@@ -238,7 +238,6 @@ def test_task3_try_it_predictions_hold():
     at the same instant, tracks the circle after the start-up with an RMS error close to that of
     |J̇q̇|/K_p (instead of micrometres), and doubling ω_n cuts it about fourfold. (Instant by
     instant the two differ by up to a factor of two: the error lags the term that drives it.)"""
-    from labsupport.dynamics import jacobian_solve, mass_times, site_jacobian, site_jdot_qdot
 
     def os_ct_without_jdot_qdot(model, data, site, x_d, xdot_d, xddot_d, Kp, Kd):
         x = data.site_xpos[site, :2]
