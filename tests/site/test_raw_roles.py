@@ -21,11 +21,15 @@ RAW_ROLE = re.compile(r"\{(glue|glue:text|glue:figure|glue:any|glue:md|numref|eq
 EXPONENT = re.compile(r"(?<![\w.])-?\d+(?:\.\d+)?e[-+]?\d+\b")
 
 
-def _prose(html: str) -> str:
-    """The text a reader reads as prose: code, printed output and formulas' TeX left out."""
+#: What is left out of the search: code and printed output (where such text is intended).
+CODE = "pre, code, script, style"
+
+
+def _text(html: str, left_out: str) -> str:
+    """The page's text without the elements ``left_out`` (a CSS selector) matches."""
     soup = BeautifulSoup(html, "html.parser")
-    for code in soup.select("pre, code, script, style, span.math, div.math"):
-        code.decompose()
+    for element in soup.select(left_out):
+        element.decompose()
     return soup.get_text(" ")
 
 
@@ -34,15 +38,18 @@ def _around(text: str, pattern: re.Pattern) -> list[str]:
 
 
 def raw_roles(html: str) -> list[str]:
-    return _around(_prose(html), RAW_ROLE)
+    """Role syntax outside code; inside a formula too, where MathJax would typeset it."""
+    return _around(_text(html, CODE), RAW_ROLE)
 
 
 def exponent_numbers(html: str) -> list[str]:
-    return _around(_prose(html), EXPONENT)
+    """Numbers in exponent notation in the prose: code and formulas' TeX left out."""
+    return _around(_text(html, f"{CODE}, span.math, div.math"), EXPONENT)
 
 
 def test_raw_roles_are_found():
     assert raw_roles("<p>$$ x = {glue:text}`a:.1f` $$</p>")
+    assert raw_roles('<div class="math notranslate nohighlight">\\[x = {glue:text}`a:.1f`\\]</div>')
     assert not raw_roles("<p>x = 3.0</p><pre>{glue:text}`a`</pre>")
 
 
