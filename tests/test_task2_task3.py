@@ -55,16 +55,22 @@ def test_single_joint_free_response_matches_scipy():
     np.testing.assert_allclose(log.q[:, 0], ref.q[:, 0], atol=5e-3)
 
 
-def task2_rms_deg(r_tilde, feedforward=True):
+def task2_rms_deg(r_tilde, feedforward=True, Ki=0.0):
+    """Task 2's run: computed torque with the model's r̃ (or PD alone), plus ``Ki`` times the
+    integral of the error, which the controller keeps (Task 2's "Try it")."""
     (Kp, Kd), _ = gains.spec_gains(0.5, 0.1, 5.0, 2.0)
     model, data = load_model("single_joint")
     ctrl_model = SingleJoint(r=r_tilde, g=9.81)
+    dt, integral = model.opt.timestep, np.zeros(1)
 
     def controller(model, data):
         theta, theta_dot, ref = data.qpos[0], data.qvel[0], sinusoid(data.time)
+        integral[0] += (ref.pos - theta) * dt
         if feedforward:
-            return np.array([computed_torque(ctrl_model, theta, theta_dot, *ref, Kp, Kd)])
-        return np.array([pd_torque(theta, theta_dot, ref.pos, ref.vel, Kp, Kd)])
+            tau = computed_torque(ctrl_model, theta, theta_dot, *ref, Kp, Kd)
+        else:
+            tau = pd_torque(theta, theta_dot, ref.pos, ref.vel, Kp, Kd)
+        return np.array([tau + Ki * integral[0]])
 
     r0 = sinusoid(0.0)
     log = sim.simulate(model, data, controller, 4 * np.pi, q0=[r0.pos], qdot0=[r0.vel], torque_limit=20.0)
@@ -95,23 +101,13 @@ def test_task2_try_it_predictions_hold():
     the RMS falls well below the offset's, but not to zero; past the Routh-Hurwitz bound
     K_i < (b + K_d) K_p / M the error grows, below it it decays."""
     (Kp, Kd), _ = gains.spec_gains(0.5, 0.1, 5.0, 2.0)
-    wrong = SingleJoint(r=0.08, g=9.81)
     bound = (0.1 + Kd) * Kp / 0.5
 
     def run(Ki):
-        model, data = load_model("single_joint")
-        dt, integral = model.opt.timestep, np.zeros(1)
-
-        def controller(model, data):
-            ref = sinusoid(data.time)
-            integral[0] += (ref.pos - data.qpos[0]) * dt
-            return np.array([computed_torque(wrong, data.qpos[0], data.qvel[0], *ref, Kp, Kd) + Ki * integral[0]])
-
-        r0 = sinusoid(0.0)
-        log = sim.simulate(model, data, controller, 4 * np.pi, q0=[r0.pos], qdot0=[r0.vel], torque_limit=20.0)
+        rms, log = task2_rms_deg(0.08, Ki=Ki)
         error = np.degrees(sinusoid(log.t).pos - log.q[:, 0])
         first, second = log.t < 2 * np.pi, log.t >= 2 * np.pi
-        return metrics.rms(error), metrics.rms(error[first]), metrics.rms(error[second]), error[second].mean()
+        return rms, metrics.rms(error[first]), metrics.rms(error[second]), error[second].mean()
 
     rms_p, _, _, mean_p = run(0.0)
     rms_i, _, _, mean_i = run(Kp)
@@ -195,11 +191,11 @@ def ik_ct(model, Kp, Kd, duration=12.0):
     return controller
 
 
-def tracking_run(make, start_on_path=False, log_after_step=True, duration=12.0):
+def tracking_run(make, start_on_path=False, log_after_step=True, duration=12.0, wn=8.0):
     model, data = load_model("planar_2r")
     q0 = k2.inverse_kinematics(CIRCLE(0.0).pos, branch="up")
     qdot0 = np.linalg.solve(k2.jacobian(q0), CIRCLE(0.0).vel) if start_on_path else np.zeros(2)
-    Kp, Kd = gains.ct_gains(8.0, 1.0)
+    Kp, Kd = gains.ct_gains(wn, 1.0)
     return sim.simulate(
         model,
         data,
@@ -233,47 +229,45 @@ def test_task3_2_residual_explained_and_removed(make):
     assert np.all(both <= 0.1) and np.all(both < 0.005)
 
 
+def os_ct_without_jdot_qdot(model, Kp, Kd, duration=12.0):
+    """Task 3's "Try it" law, OS-CT with its J̇q̇ term left out, as a controller like :func:`os_ct`."""
+    ref = trajectories.sample(CIRCLE, model.opt.timestep, duration)
+    site = model.site("end_effector").id
+
+    def controller(model, data):
+        x_d, xdot_d, xddot_d = ref.at(data.time)
+        x = data.site_xpos[site, :2]
+        J = site_jacobian(model, data, site)[:2]
+        xddot = xddot_d + Kd * (xdot_d - J @ data.qvel) + Kp * (x_d - x)
+        return mass_times(model, data, jacobian_solve(J, xddot)) + data.qfrc_bias
+
+    return controller
+
+
 def test_task3_try_it_predictions_hold():
     """Task 3's "Try it" box: OS-CT written without its J̇q̇ term, started on the path and logged
     at the same instant, tracks the circle after the start-up with an RMS error close to that of
     |J̇q̇|/K_p (instead of micrometres), and doubling ω_n cuts it about fourfold. (Instant by
     instant the two differ by up to a factor of two: the error lags the term that drives it.)"""
 
-    def os_ct_without_jdot_qdot(model, data, site, x_d, xdot_d, xddot_d, Kp, Kd):
-        x = data.site_xpos[site, :2]
-        J = site_jacobian(model, data, site)[:2]
-        xddot = xddot_d + Kd * (xdot_d - J @ data.qvel) + Kp * (x_d - x)
-        return mass_times(model, data, jacobian_solve(J, xddot)) + data.qfrc_bias
-
     def run(wn):
-        model, data = load_model("planar_2r")
-        site, (Kp, Kd) = model.site("end_effector").id, gains.ct_gains(wn, 1.0)
-        ref = trajectories.sample(CIRCLE, model.opt.timestep, 12.0)
-        q0 = k2.inverse_kinematics(CIRCLE(0.0).pos, branch="up")
-        log = sim.simulate(
-            model,
-            data,
-            lambda m, d: os_ct_without_jdot_qdot(m, d, site, *ref.at(d.time), Kp, Kd),
-            12.0,
-            q0=q0,
-            qdot0=np.linalg.solve(k2.jacobian(q0), CIRCLE(0.0).vel),
-            site="end_effector",
-            reference=CIRCLE,
-            log_after_step=False,
-        )
-        after = np.flatnonzero(log.t >= 2.0)[::25]
-        predicted = []
-        for k in after:
-            data.qpos[:], data.qvel[:] = log.q[k], log.qdot[k]
-            mujoco.mj_forward(model, data)
-            predicted.append(np.linalg.norm(site_jdot_qdot(model, data, site)[:2]) / Kp)
-        return np.linalg.norm(log.err[after], axis=1), np.array(predicted)
+        log = tracking_run(os_ct_without_jdot_qdot, start_on_path=True, log_after_step=False, wn=wn)
+        return log, np.flatnonzero(log.t >= 2.0)[::25]
 
-    error, predicted = run(8.0)
+    log, after = run(8.0)
+    error = np.linalg.norm(log.err[after], axis=1)
+    model, data = load_model("planar_2r")
+    Kp, predicted = gains.ct_gains(8.0, 1.0).Kp, []
+    for k in after:
+        data.qpos[:], data.qvel[:] = log.q[k], log.qdot[k]
+        mujoco.mj_forward(model, data)
+        predicted.append(np.linalg.norm(site_jdot_qdot(model, data, "end_effector")[:2]) / Kp)
     assert metrics.rms(error) == pytest.approx(metrics.rms(predicted), rel=0.1)
     assert 0.2e-3 < error.min() and error.max() < 2e-3  # of the order of a millimetre
-    faster, _ = run(16.0)
-    assert metrics.rms(error) / metrics.rms(faster) == pytest.approx(4.0, rel=0.15)
+    faster, after_fast = run(16.0)
+    assert metrics.rms(error) / metrics.rms(np.linalg.norm(faster.err[after_fast], axis=1)) == pytest.approx(
+        4.0, rel=0.15
+    )
 
 
 def test_velocity_transient_matches_closed_form():
