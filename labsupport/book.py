@@ -81,10 +81,27 @@ def show_law(fn: Callable) -> None:
     display(Markdown(f"{fence}python\n{source}{fence}"))
 
 
+#: A number in Python's exponent notation (``f"{x:.1e}"``): mantissa and exponent.
+EXPONENT_NUMBER = re.compile(r"(?<![\w.])(-?\d+(?:\.\d+)?)e([-+]?\d+)\b")
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+def power_of_ten(text: str) -> str:
+    """``text`` with each number in Python's exponent notation written as a power of ten, the
+    way a reader (or a screen reader) says it: ``1.4e-09`` becomes ``1.4 × 10⁻⁹``."""
+
+    def written(found: re.Match) -> str:
+        mantissa, exponent = found.groups()
+        return f"{mantissa} × 10{str(int(exponent)).translate(_SUPERSCRIPT)}"
+
+    return EXPONENT_NUMBER.sub(written, text)
+
+
 def text_alternative(alt, what: str = "a figure") -> str:
-    """``alt`` with its white space collapsed, or a ``ValueError`` when it cannot be a text
+    """``alt`` with its white space collapsed and its numbers in exponent notation written as
+    powers of ten (:func:`power_of_ten`), or a ``ValueError`` when it cannot be a text
     alternative (WCAG 2.1, 1.1.1): fewer than :data:`MIN_ALT_WORDS` words, or a file name."""
-    text = " ".join(alt.split()) if isinstance(alt, str) else ""
+    text = power_of_ten(" ".join(alt.split())) if isinstance(alt, str) else ""
     if len(re.findall(r"\w+", text)) < MIN_ALT_WORDS or re.search(r"\.(png|jpe?g|svg|mp4)$", text, re.IGNORECASE):
         raise ValueError(
             f"{what} needs a text alternative of at least {MIN_ALT_WORDS} words that says what it shows, got {alt!r}"

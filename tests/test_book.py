@@ -51,6 +51,26 @@ def test_a_rendered_frame_is_shown_too(shown):
     assert base64.b64decode(shown[0]["image/png"])[16:24] == (32).to_bytes(4, "big") + (24).to_bytes(4, "big")
 
 
+@pytest.mark.parametrize(
+    ("printed", "written"),
+    [
+        ("ends at 1.4e-09 mm", "ends at 1.4 × 10⁻⁹ mm"),
+        ("a floor of 4e-13 degrees", "a floor of 4 × 10⁻¹³ degrees"),
+        ("from -2.50e+03 to 1e6 N", "from -2.50 × 10³ to 1 × 10⁶ N"),
+        ("file v1.2e3, time step 2e, sensor e-3, 1e-", "file v1.2e3, time step 2e, sensor e-3, 1e-"),
+    ],
+)
+def test_exponent_notation_is_written_as_a_power_of_ten(printed, written):
+    assert book.power_of_ten(printed) == written
+
+
+def test_a_text_alternative_says_exponents_as_powers_of_ten(shown):
+    book.show_figure(np.zeros((4, 4, 3), dtype=np.uint8), f"The error falls to {1.4e-9:.1e} mm within one second.")
+    (bundle,) = shown
+    assert bundle["text/plain"] == "The error falls to 1.4 × 10⁻⁹ mm within one second."
+    assert 'alt="The error falls to 1.4 × 10⁻⁹ mm within one second."' in bundle["text/html"]
+
+
 @pytest.mark.parametrize("alt", ["", "a plot", "../_images/ab12.png", "   "])
 def test_an_alt_that_says_nothing_is_refused(shown, alt):
     with pytest.raises(ValueError, match="text alternative of at least 5 words"):

@@ -3,8 +3,9 @@
 A role such as ``{glue:text}`name``` only works in running text: inside a ``$$`` math block,
 for instance, it reaches the page as raw characters, and MathJax typesets them. A number glued
 with a format such as ``:.1e`` reads ``1.4e-09``; the site writes it as a power of ten
-(``book/_ext/site_fixes.py``). Every built page is searched outside code and printed output
-(where such text is intended).
+(``book/_ext/site_fixes.py``), and a figure's text alternative as ``1.4 × 10⁻⁹``
+(``labsupport.book.power_of_ten``). Every built page is searched outside code and printed output
+(where such text is intended), its figures' and videos' text alternatives included.
 """
 
 from __future__ import annotations
@@ -42,9 +43,16 @@ def raw_roles(html: str) -> list[str]:
     return _around(_text(html, CODE), RAW_ROLE)
 
 
+def _text_alternatives(html: str) -> str:
+    """The text alternatives of the page's figures and videos (``alt`` and ``aria-label``)."""
+    soup = BeautifulSoup(html, "html.parser")
+    return " ".join(e.get("alt") or e.get("aria-label") for e in soup.select("[alt], [aria-label]"))
+
+
 def exponent_numbers(html: str) -> list[str]:
-    """Numbers in exponent notation in the prose: code and formulas' TeX left out."""
-    return _around(_text(html, f"{CODE}, span.math, div.math"), EXPONENT)
+    """Numbers in exponent notation in the prose (code and formulas' TeX left out) and in the
+    text alternatives of figures and videos, which a screen reader reads out."""
+    return _around(_text(html, f"{CODE}, span.math, div.math") + " " + _text_alternatives(html), EXPONENT)
 
 
 def test_raw_roles_are_found():
@@ -58,6 +66,9 @@ def test_exponent_numbers_are_found():
     assert len(found) == 2 and "1.4e-09" in found[0] and "4e-13" in found[1]
     assert not exponent_numbers("<p>the constant <code>1e6</code>, <span class='math'>1e-9</span></p><pre>2e-09</pre>")
     assert not exponent_numbers("<p>time step 2e, see Eq. 3e-ish, sensor e-3, file v1.2e</p>")
+    assert exponent_numbers('<img src="a.png" alt="the error ends at 1.4e-09 mm">')
+    assert exponent_numbers('<video aria-label="a floor of 1e-04 degrees"></video>')
+    assert not exponent_numbers('<img src="a.png" alt="the error ends at 1.4 × 10⁻⁹ mm">')
 
 
 @pytest.mark.parametrize("page", toc_pages())
