@@ -32,6 +32,12 @@ part of them is reachable by landmark.
   it, so a line could begin with a lone ``,`` or end with a lone ``(``. Each inline formula with
   punctuation against it is wrapped, with that punctuation, in a ``span.math-nobreak``, which
   ``course.css`` keeps on one line.
+* **Code broken at its hyphens.** Inline code may break where it must, so that a long call
+  never widens a phone's page (``course.css``); but a browser also breaks it after any hyphen,
+  where it need not, and ``sscbirrt-`` at a line's end reads as a name that ends in a hyphen,
+  ``-`` then ``> tau`` as a minus sign. Each word of inline code that holds a hyphen (Sphinx
+  writes each word as a ``span.pre``) gets the class ``keep-whole``, which ``course.css`` keeps
+  on one line.
 """
 
 from __future__ import annotations
@@ -48,6 +54,8 @@ _TITLE_ITEM = re.compile(
 _INLINE_MATH = re.compile(r'([(\[]?)(<span class="math notranslate nohighlight">[^<]*</span>)([,.;:!?)\]]*)')
 #: A glued number written by Python's ``e`` format: mantissa, sign and exponent.
 _GLUED_EXPONENT = re.compile(r'<span class="pasted-text">(-?\d+(?:\.\d+)?)e([-+]?)(\d+)</span>')
+#: A word of inline code (docutils writes each as a ``span.pre``) that holds a hyphen.
+_HYPHENATED_CODE = re.compile(r'<span class="pre">([^<]*-[^<]*)</span>')
 _FONTAWESOME_JS = re.compile(r'\s*<script defer src="[^"]*_static/scripts/fontawesome\.js[^"]*"></script>')
 
 
@@ -93,8 +101,8 @@ def fix_page_context(app, pagename, templatename, context, doctree):
 def fix_built_pages(app, exc):
     """``build-finished`` handler: remove the redundant Font Awesome script from every page, give
     bibliography entries the list-item role, put the course title in a landmark, write glued
-    numbers in exponent notation as powers of ten, and keep each inline formula on one line with
-    the punctuation against it."""
+    numbers in exponent notation as powers of ten, keep each inline formula on one line with
+    the punctuation against it, and keep each hyphenated word of inline code whole."""
     if exc is not None or app.builder.format != "html":
         return
     out = Path(app.outdir)
@@ -104,6 +112,7 @@ def fix_built_pages(app, exc):
         lighter = _TITLE_ITEM.sub(r'\1 role="navigation" aria-label="Course home">', lighter, count=1)
         lighter = _GLUED_EXPONENT.sub(_power_of_ten, lighter)
         lighter = _INLINE_MATH.sub(_math_with_its_punctuation, lighter)
+        lighter = _HYPHENATED_CODE.sub(r'<span class="pre keep-whole">\1</span>', lighter)
         if lighter != html:
             page.write_text(lighter, encoding="utf-8")
     _icon_on_the_redirect(out / "index.html", app.config.html_favicon)
