@@ -38,8 +38,18 @@ EGL_LOADER = "libEGL.so.1"
 #: What to do where NVIDIA's EGL library is there but the loader is not (see :func:`egl_loader_missing`).
 EGL_LOADER_ADVICE = (
     f"NVIDIA's EGL library ({NVIDIA_EGL_LIBRARY}) is here, but not the EGL loader ({EGL_LOADER}) that "
-    "opens it: install the loader (Debian/Ubuntu: `sudo apt-get install libegl1`) and restart the "
-    "kernel to render on the GPU"
+    "opens it: install the loader, and the OpenGL library that PyOpenGL uses beside it (Debian/Ubuntu: "
+    "`sudo apt-get install libegl1 libopengl0`), and restart the kernel to render on the GPU"
+)
+
+#: The OpenGL libraries that PyOpenGL, through which MuJoCo renders, loads beside EGL: the first of
+#: these names that loads as ``lib<name>.so`` or ``lib<name>.so.<0-9>``, as PyOpenGL looks for them.
+PYOPENGL_EGL_LIBRARIES = ("OpenGL", "GL", "GLESv2", "GLESv1_CM")
+#: What to do where EGL's loader is there but none of those libraries (see :func:`opengl_library_missing`).
+OPENGL_LIBRARY_ADVICE = (
+    f"the EGL loader ({EGL_LOADER}) is here, but no OpenGL library for PyOpenGL to use beside it "
+    "(libOpenGL.so.0 or libGL.so.1), and without one MuJoCo's import fails on EGL: install it "
+    "(Debian/Ubuntu: `sudo apt-get install libopengl0`) and restart the kernel to render through EGL"
 )
 
 
@@ -83,6 +93,22 @@ def egl_loader_missing() -> bool:
     return not library_loads(EGL_LOADER) and library_loads(NVIDIA_EGL_LIBRARY)
 
 
+def opengl_library_loads() -> bool:
+    """True when PyOpenGL's EGL platform finds an OpenGL library: one of
+    :data:`PYOPENGL_EGL_LIBRARIES`, as ``lib<name>.so`` or ``lib<name>.so.<0-9>``."""
+    versions = ("", *(f".{n}" for n in range(10)))
+    return any(library_loads(f"lib{name}.so{v}") for name in PYOPENGL_EGL_LIBRARIES for v in versions)
+
+
+def opengl_library_missing() -> bool:
+    """True when glvnd's EGL loader (:data:`EGL_LOADER`) loads but no OpenGL library does
+    (:func:`opengl_library_loads`): a minimal Debian or Ubuntu with ``libegl1`` and without
+    ``libopengl0``. There EGL opens a display, yet importing MuJoCo with ``MUJOCO_GL=egl`` fails
+    inside PyOpenGL ("'NoneType' object has no attribute 'glGetError'"), simulation and all, so
+    EGL must not be chosen."""
+    return library_loads(EGL_LOADER) and not opengl_library_loads()
+
+
 def list_nvidia_egl() -> bool:
     """Let EGL find NVIDIA's driver where no glvnd vendor file names it (Colab's GPU runtimes).
 
@@ -111,13 +137,14 @@ def list_nvidia_egl() -> bool:
 
 
 def egl_works() -> bool:
-    """True when EGL can open a headless display the way MuJoCo does (a GPU, or Mesa's llvmpipe).
+    """True when EGL can open a headless display the way MuJoCo does (a GPU, or Mesa's llvmpipe),
+    with an OpenGL library beside it for PyOpenGL (:func:`opengl_library_loads`).
 
     Calls ``eglQueryDevicesEXT``, ``eglGetPlatformDisplayEXT`` and ``eglInitialize`` through
     ctypes, so it needs neither MuJoCo nor PyOpenGL and takes a few milliseconds.
     """
     name = ctypes.util.find_library("EGL")
-    if not name:
+    if not name or not opengl_library_loads():
         return False
     try:
         egl = ctypes.CDLL(name)
@@ -186,10 +213,12 @@ def mujoco_gl_values() -> tuple[str, ...]:
 
 def select_backend() -> str | None:
     """Set ``MUJOCO_GL`` (and ``PYOPENGL_PLATFORM``) unless the user already chose (an empty
-    ``MUJOCO_GL`` counts as no choice; one MuJoCo would refuse is dropped with a warning, since
-    MuJoCo's import would fail on it).
+    ``MUJOCO_GL`` counts as no choice; one MuJoCo would refuse, and ``egl`` where no OpenGL
+    library goes with it (:func:`opengl_library_missing`), are dropped with a warning, since
+    MuJoCo's import would fail on them).
 
-    On Linux, EGL is taken if it really opens a display (:func:`egl_works`), else OSMesa if it
+    On Linux, EGL is taken if it really opens a display and PyOpenGL has an OpenGL library to
+    use with it (:func:`egl_works`), else OSMesa if it
     really creates a context (:func:`osmesa_works`), else GLFW if a desktop display is open,
     else nothing: simulation still works and rendering raises a
     :class:`labsupport.render.RenderingUnavailable` that says what to install. On macOS and
@@ -210,12 +239,23 @@ def select_backend() -> str | None:
             stacklevel=2,
         )
         del os.environ["MUJOCO_GL"]
+    elif on_linux() and chosen.strip().lower() == "egl" and "mujoco" not in sys.modules and opengl_library_missing():
+        # MuJoCo's import would fail inside PyOpenGL, and with it every simulation of the course
+        warnings.warn(
+            f"MUJOCO_GL={chosen!r} cannot work here: {OPENGL_LIBRARY_ADVICE}. labsupport ignores it "
+            "and picks a backend itself.",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+        del os.environ["MUJOCO_GL"]
     user_backend = None
     notes = " (NVIDIA's EGL listed by labsupport)" if on_linux() and list_nvidia_egl() else ""
     if on_linux() and nvidia_egl_missing():
         notes += f"; {NVIDIA_EGL_ADVICE}"
     elif on_linux() and egl_loader_missing():
         notes += f"; {EGL_LOADER_ADVICE}"
+    elif on_linux() and opengl_library_missing():
+        notes += f"; {OPENGL_LIBRARY_ADVICE}"
     if os.environ.get("MUJOCO_GL", "").strip():  # empty is no choice: MuJoCo would take GLFW's default
         user_backend = os.environ["MUJOCO_GL"]
         last_choice = f"MUJOCO_GL={user_backend} was set before labsupport was imported{notes}"

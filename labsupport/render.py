@@ -38,7 +38,7 @@ TARGET_WIDTH, EE_WIDTH = 6.0, 3.0
 
 INSTALL_HINT = (
     "On Linux, install an OpenGL library that works without a display and restart the kernel: "
-    "on Debian/Ubuntu `sudo apt-get install libegl1 libgl1-mesa-dri` (EGL through Mesa) or "
+    "on Debian/Ubuntu `sudo apt-get install libegl1 libopengl0 libgl1-mesa-dri` (EGL through Mesa) or "
     "`sudo apt-get install libosmesa6` (OSMesa, software only). On Colab choose a GPU runtime "
     "(Runtime > Change runtime type); labsupport sets up NVIDIA's EGL itself. On macOS and "
     "Windows MuJoCo renders through the desktop's OpenGL with MUJOCO_GL unset: update the "

@@ -204,9 +204,50 @@ def test_a_gpu_without_the_egl_loader_is_told_to_install_it(fresh_backend_choice
         fresh_backend_choice.setattr(gl, works, lambda: False)
     fresh_backend_choice.setattr(gl, "library_loads", lambda name: name == gl.NVIDIA_EGL_LIBRARY)
     assert gl.select_backend() is None
-    assert "but not the EGL loader (libEGL.so.1)" in gl.last_choice and "apt-get install libegl1" in gl.last_choice
+    assert "but not the EGL loader (libEGL.so.1)" in gl.last_choice
+    assert "apt-get install libegl1 libopengl0" in gl.last_choice
     fresh_backend_choice.setattr(gl, "library_loads", lambda name: True)  # the loader is there: no such advice
     assert gl.select_backend() is None and "EGL loader" not in gl.last_choice
+
+
+def only_the_egl_loader_loads(name: str) -> bool:
+    """``library_loads`` on a minimal Debian or Ubuntu with ``libegl1`` and no ``libopengl0``."""
+    return name == gl.EGL_LOADER
+
+
+def test_egl_without_an_opengl_library_is_not_chosen_and_the_package_is_named(fresh_backend_choice):
+    """Mesa's EGL opened a display, but PyOpenGL found no libOpenGL/libGL beside it: EGL was
+    chosen, and ``import labsupport`` then failed inside MuJoCo's import ("'NoneType' object has
+    no attribute 'glGetError'"), simulation and all (seen on a minimal Debian with Python 3.14)."""
+    fresh_backend_choice.setattr(gl, "on_linux", lambda: True)
+    fresh_backend_choice.setattr(gl, "NVIDIA_DRIVER_FILES", ())
+    fresh_backend_choice.setattr(gl, "library_loads", only_the_egl_loader_loads)
+    fresh_backend_choice.setattr(gl, "osmesa_works", lambda: False)
+    fresh_backend_choice.setattr(gl, "display_open", lambda: False)
+    assert not gl.opengl_library_loads() and not gl.egl_works()
+    assert gl.select_backend() is None and "MUJOCO_GL" not in os.environ
+    assert "egl did not work" in gl.last_choice
+    assert "no OpenGL library for PyOpenGL" in gl.last_choice and "apt-get install libopengl0" in gl.last_choice
+    fresh_backend_choice.setattr(gl, "library_loads", lambda name: name in (gl.EGL_LOADER, "libOpenGL.so.0"))
+    assert gl.opengl_library_loads() and not gl.opengl_library_missing()
+    fresh_backend_choice.setattr(gl, "egl_works", lambda: False)  # EGL failing for another reason
+    assert gl.select_backend() is None and "libopengl0" not in gl.last_choice  # names no such library
+
+
+def test_a_users_egl_without_an_opengl_library_is_dropped_with_a_warning(fresh_backend_choice):
+    """``MUJOCO_GL=egl`` set by hand on such a machine would make MuJoCo's import fail; labsupport
+    says why and takes the backend that works (OSMesa here)."""
+    fresh_backend_choice.setenv("MUJOCO_GL", "egl")
+    fresh_backend_choice.setattr(gl, "on_linux", lambda: True)
+    fresh_backend_choice.setattr(gl, "NVIDIA_DRIVER_FILES", ())
+    fresh_backend_choice.setattr(gl, "library_loads", only_the_egl_loader_loads)
+    fresh_backend_choice.setattr(gl, "osmesa_works", lambda: True)
+    with pytest.warns(RuntimeWarning, match=r"MUJOCO_GL='egl' cannot work here: .*apt-get install libopengl0"):
+        assert gl.select_backend() == "osmesa"
+    assert os.environ["MUJOCO_GL"] == "osmesa" and gl.user_backend is None
+    fresh_backend_choice.setenv("MUJOCO_GL", "egl")  # with an OpenGL library, the user's choice stands
+    fresh_backend_choice.setattr(gl, "library_loads", lambda name: True)
+    assert gl.select_backend() == "egl" and gl.user_backend == "egl"
 
 
 def test_rendering_on_the_cpu_beside_an_unusable_gpu_says_why(monkeypatch, tmp_path):
