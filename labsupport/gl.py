@@ -109,6 +109,13 @@ def opengl_library_missing() -> bool:
     return library_loads(EGL_LOADER) and not opengl_library_loads()
 
 
+def pyopengl_egl_missing() -> bool:
+    """True when PyOpenGL cannot load EGL here: no EGL loader (:data:`EGL_LOADER`), or no OpenGL
+    library beside it (:func:`opengl_library_loads`). Importing MuJoCo with ``MUJOCO_GL=egl``
+    then fails inside PyOpenGL ("'NoneType' object has no attribute ..."), simulation and all."""
+    return not library_loads(EGL_LOADER) or not opengl_library_loads()
+
+
 def list_nvidia_egl() -> bool:
     """Let EGL find NVIDIA's driver where no glvnd vendor file names it (Colab's GPU runtimes).
 
@@ -213,9 +220,9 @@ def mujoco_gl_values() -> tuple[str, ...]:
 
 def select_backend() -> str | None:
     """Set ``MUJOCO_GL`` (and ``PYOPENGL_PLATFORM``) unless the user already chose (an empty
-    ``MUJOCO_GL`` counts as no choice; one MuJoCo would refuse, and ``egl`` where no OpenGL
-    library goes with it (:func:`opengl_library_missing`), are dropped with a warning, since
-    MuJoCo's import would fail on them).
+    ``MUJOCO_GL`` counts as no choice; one MuJoCo would refuse, and ``egl`` where PyOpenGL cannot
+    load EGL (:func:`pyopengl_egl_missing`), are dropped with a warning, since MuJoCo's import
+    would fail on them).
 
     On Linux, EGL is taken if it really opens a display and PyOpenGL has an OpenGL library to
     use with it (:func:`egl_works`), else OSMesa if it
@@ -239,11 +246,13 @@ def select_backend() -> str | None:
             stacklevel=2,
         )
         del os.environ["MUJOCO_GL"]
-    elif on_linux() and chosen.strip().lower() == "egl" and "mujoco" not in sys.modules and opengl_library_missing():
+    elif on_linux() and chosen.strip().lower() == "egl" and "mujoco" not in sys.modules and pyopengl_egl_missing():
         # MuJoCo's import would fail inside PyOpenGL, and with it every simulation of the course
         warnings.warn(
-            f"MUJOCO_GL={chosen!r} cannot work here: {OPENGL_LIBRARY_ADVICE}. labsupport ignores it "
-            "and picks a backend itself.",
+            f"MUJOCO_GL={chosen!r} cannot work here: MuJoCo's EGL back end needs the EGL loader "
+            f"({EGL_LOADER}) and an OpenGL library beside it (libOpenGL.so.0 or libGL.so.1), and without "
+            "them MuJoCo's import fails (Debian/Ubuntu: `sudo apt-get install libegl1 libopengl0`, and "
+            "restart the kernel). labsupport ignores it and picks a backend itself.",
             RuntimeWarning,
             stacklevel=2,
         )

@@ -234,17 +234,22 @@ def test_egl_without_an_opengl_library_is_not_chosen_and_the_package_is_named(fr
     assert gl.select_backend() is None and "libopengl0" not in gl.last_choice  # names no such library
 
 
-def test_a_users_egl_without_an_opengl_library_is_dropped_with_a_warning(fresh_backend_choice):
-    """``MUJOCO_GL=egl`` set by hand on such a machine would make MuJoCo's import fail; labsupport
-    says why and takes the backend that works (OSMesa here)."""
+def test_a_users_egl_that_pyopengl_cannot_load_is_dropped_with_a_warning(fresh_backend_choice):
+    """``MUJOCO_GL=egl`` set by hand where PyOpenGL cannot load EGL (no OpenGL library beside the
+    loader, or no loader) made MuJoCo's import fail; labsupport says why and takes the backend
+    that works (OSMesa here)."""
     fresh_backend_choice.setenv("MUJOCO_GL", "egl")
     fresh_backend_choice.setattr(gl, "on_linux", lambda: True)
     fresh_backend_choice.setattr(gl, "NVIDIA_DRIVER_FILES", ())
     fresh_backend_choice.setattr(gl, "library_loads", only_the_egl_loader_loads)
     fresh_backend_choice.setattr(gl, "osmesa_works", lambda: True)
-    with pytest.warns(RuntimeWarning, match=r"MUJOCO_GL='egl' cannot work here: .*apt-get install libopengl0"):
+    with pytest.warns(RuntimeWarning, match=r"MUJOCO_GL='egl' cannot work here: .*apt-get install libegl1 libopengl0"):
         assert gl.select_backend() == "osmesa"
     assert os.environ["MUJOCO_GL"] == "osmesa" and gl.user_backend is None
+    fresh_backend_choice.setenv("MUJOCO_GL", "egl")  # no EGL loader either: MuJoCo's import fails the same way
+    fresh_backend_choice.setattr(gl, "library_loads", lambda name: False)
+    with pytest.warns(RuntimeWarning, match=r"MUJOCO_GL='egl' cannot work here: .*EGL loader \(libEGL.so.1\)"):
+        assert gl.select_backend() == "osmesa"
     fresh_backend_choice.setenv("MUJOCO_GL", "egl")  # with an OpenGL library, the user's choice stands
     fresh_backend_choice.setattr(gl, "library_loads", lambda name: True)
     assert gl.select_backend() == "egl" and gl.user_backend == "egl"
