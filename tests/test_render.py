@@ -331,13 +331,15 @@ def test_renderer_size_is_checked():
 
 @pytest.fixture
 def glvnd(tmp_path, monkeypatch):
-    """A system vendor folder holding Mesa's file only, NVIDIA's EGL library installed, and no
-    glvnd variable set (all restored after)."""
+    """A system vendor folder holding Mesa's file only, NVIDIA's EGL library installed beside
+    glvnd's loader and OpenGL library, and no glvnd variable set (all restored after)."""
     folder = tmp_path / "egl_vendor.d"
     folder.mkdir()
     (folder / "50_mesa.json").write_text('{"ICD": {"library_path": "libEGL_mesa.so.0"}}')
     monkeypatch.setattr(gl, "GLVND_EGL_VENDOR_DIRS", (str(tmp_path / "absent"), str(folder)))
-    monkeypatch.setattr(gl, "library_loads", lambda name: name == gl.NVIDIA_EGL_LIBRARY)
+    monkeypatch.setattr(
+        gl, "library_loads", lambda name: name in (gl.NVIDIA_EGL_LIBRARY, gl.EGL_LOADER, "libOpenGL.so.0")
+    )
     unset_env(monkeypatch, "__EGL_VENDOR_LIBRARY_FILENAMES", "__EGL_VENDOR_LIBRARY_DIRS")
     return folder
 
