@@ -116,6 +116,13 @@ def pyopengl_egl_missing() -> bool:
     return not library_loads(EGL_LOADER) or not opengl_library_loads()
 
 
+def missing_vendor_files() -> list[str]:
+    """The files that ``__EGL_VENDOR_LIBRARY_FILENAMES`` names but that do not exist. glvnd reads
+    only the files it names, so EGL then finds no driver in them, a GPU's included."""
+    named = os.environ.get("__EGL_VENDOR_LIBRARY_FILENAMES", "").split(os.pathsep)
+    return [f for f in named if f and not Path(f).is_file()]
+
+
 def list_nvidia_egl() -> bool:
     """Let EGL find NVIDIA's driver where no glvnd vendor file names it (Colab's GPU runtimes).
 
@@ -265,6 +272,11 @@ def select_backend() -> str | None:
         notes += f"; {EGL_LOADER_ADVICE}"
     elif on_linux() and opengl_library_missing():
         notes += f"; {OPENGL_LIBRARY_ADVICE}"
+    if on_linux() and missing_vendor_files():
+        notes += (
+            f"; __EGL_VENDOR_LIBRARY_FILENAMES names files that do not exist ({', '.join(missing_vendor_files())}): "
+            "fix or unset it where it was set, and restart the kernel"
+        )
     if os.environ.get("MUJOCO_GL", "").strip():  # empty is no choice: MuJoCo would take GLFW's default
         user_backend = os.environ["MUJOCO_GL"]
         last_choice = f"MUJOCO_GL={user_backend} was set before labsupport was imported{notes}"

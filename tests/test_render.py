@@ -255,6 +255,21 @@ def test_a_users_egl_that_pyopengl_cannot_load_is_dropped_with_a_warning(fresh_b
     assert gl.select_backend() == "egl" and gl.user_backend == "egl"
 
 
+def test_a_vendor_variable_naming_missing_files_is_named(fresh_backend_choice, tmp_path):
+    """``__EGL_VENDOR_LIBRARY_FILENAMES`` pointing at a file that is not there hides every EGL
+    driver, a GPU's too; the report used to give Mesa's install advice alone."""
+    fresh_backend_choice.setenv("__EGL_VENDOR_LIBRARY_FILENAMES", f"{tmp_path / 'none.json'}:{tmp_path / 'gone.json'}")
+    fresh_backend_choice.setattr(gl, "on_linux", lambda: True)
+    for works in ("egl_works", "osmesa_works", "display_open"):
+        fresh_backend_choice.setattr(gl, works, lambda: False)
+    assert gl.select_backend() is None
+    assert "__EGL_VENDOR_LIBRARY_FILENAMES names files that do not exist" in gl.last_choice
+    assert str(tmp_path / "none.json") in gl.last_choice and str(tmp_path / "gone.json") in gl.last_choice
+    (tmp_path / "none.json").write_text("{}")
+    (tmp_path / "gone.json").write_text("{}")
+    assert gl.select_backend() is None and "__EGL_VENDOR_LIBRARY_FILENAMES" not in gl.last_choice
+
+
 def test_rendering_on_the_cpu_beside_an_unusable_gpu_says_why(monkeypatch, tmp_path):
     """Mesa's EGL renders but the GPU sits idle, or nothing renders: either way the GPU's
     missing EGL library is named, with what to do."""
