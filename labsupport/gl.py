@@ -45,11 +45,11 @@ EGL_LOADER_ADVICE = (
 #: The OpenGL libraries that PyOpenGL, through which MuJoCo renders, loads beside EGL: the first of
 #: these names that loads as ``lib<name>.so`` or ``lib<name>.so.<0-9>``, as PyOpenGL looks for them.
 PYOPENGL_EGL_LIBRARIES = ("OpenGL", "GL", "GLESv2", "GLESv1_CM")
-#: What to do where EGL's loader is there but none of those libraries (see :func:`opengl_library_missing`).
-OPENGL_LIBRARY_ADVICE = (
-    f"the EGL loader ({EGL_LOADER}) is here, but no OpenGL library for PyOpenGL to use beside it "
-    "(libOpenGL.so.0 or libGL.so.1), and without one MuJoCo's import fails on EGL: install it "
-    "(Debian/Ubuntu: `sudo apt-get install libopengl0`) and restart the kernel to render through EGL"
+#: What to do where PyOpenGL cannot load EGL (see :func:`pyopengl_egl_missing`).
+EGL_LIBRARIES_ADVICE = (
+    f"MuJoCo's EGL back end needs the EGL loader ({EGL_LOADER}) and an OpenGL library beside it "
+    "(libOpenGL.so.0 or libGL.so.1), and without them MuJoCo's import fails on EGL: install them "
+    "(Debian/Ubuntu: `sudo apt-get install libegl1 libopengl0`) and restart the kernel to render through EGL"
 )
 
 
@@ -100,19 +100,12 @@ def opengl_library_loads() -> bool:
     return any(library_loads(f"lib{name}.so{v}") for name in PYOPENGL_EGL_LIBRARIES for v in versions)
 
 
-def opengl_library_missing() -> bool:
-    """True when glvnd's EGL loader (:data:`EGL_LOADER`) loads but no OpenGL library does
-    (:func:`opengl_library_loads`): a minimal Debian or Ubuntu with ``libegl1`` and without
-    ``libopengl0``. There EGL opens a display, yet importing MuJoCo with ``MUJOCO_GL=egl`` fails
-    inside PyOpenGL ("'NoneType' object has no attribute 'glGetError'"), simulation and all, so
-    EGL must not be chosen."""
-    return library_loads(EGL_LOADER) and not opengl_library_loads()
-
-
 def pyopengl_egl_missing() -> bool:
     """True when PyOpenGL cannot load EGL here: no EGL loader (:data:`EGL_LOADER`), or no OpenGL
-    library beside it (:func:`opengl_library_loads`). Importing MuJoCo with ``MUJOCO_GL=egl``
-    then fails inside PyOpenGL ("'NoneType' object has no attribute ..."), simulation and all."""
+    library beside it (:func:`opengl_library_loads`), as on a minimal Debian or Ubuntu with
+    ``libegl1`` and without ``libopengl0``. Importing MuJoCo with ``MUJOCO_GL=egl`` then fails
+    inside PyOpenGL ("'NoneType' object has no attribute 'glGetError'"), simulation and all, even
+    where EGL itself opens a display."""
     return not library_loads(EGL_LOADER) or not opengl_library_loads()
 
 
@@ -256,10 +249,8 @@ def select_backend() -> str | None:
     elif on_linux() and chosen.strip().lower() == "egl" and "mujoco" not in sys.modules and pyopengl_egl_missing():
         # MuJoCo's import would fail inside PyOpenGL, and with it every simulation of the course
         warnings.warn(
-            f"MUJOCO_GL={chosen!r} cannot work here: MuJoCo's EGL back end needs the EGL loader "
-            f"({EGL_LOADER}) and an OpenGL library beside it (libOpenGL.so.0 or libGL.so.1), and without "
-            "them MuJoCo's import fails (Debian/Ubuntu: `sudo apt-get install libegl1 libopengl0`, and "
-            "restart the kernel). labsupport ignores it and picks a backend itself.",
+            f"MUJOCO_GL={chosen!r} cannot work here: {EGL_LIBRARIES_ADVICE}. labsupport ignores it and "
+            "picks a backend itself.",
             RuntimeWarning,
             stacklevel=2,
         )
@@ -270,11 +261,11 @@ def select_backend() -> str | None:
         notes += f"; {NVIDIA_EGL_ADVICE}"
     elif on_linux() and egl_loader_missing():
         notes += f"; {EGL_LOADER_ADVICE}"
-    elif on_linux() and opengl_library_missing():
-        notes += f"; {OPENGL_LIBRARY_ADVICE}"
-    if on_linux() and missing_vendor_files():
+    elif on_linux() and pyopengl_egl_missing():
+        notes += f"; {EGL_LIBRARIES_ADVICE}"
+    if on_linux() and (gone := missing_vendor_files()):
         notes += (
-            f"; __EGL_VENDOR_LIBRARY_FILENAMES names files that do not exist ({', '.join(missing_vendor_files())}): "
+            f"; __EGL_VENDOR_LIBRARY_FILENAMES names files that do not exist ({', '.join(gone)}): "
             "fix or unset it where it was set, and restart the kernel"
         )
     if os.environ.get("MUJOCO_GL", "").strip():  # empty is no choice: MuJoCo would take GLFW's default

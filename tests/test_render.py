@@ -227,11 +227,13 @@ def test_egl_without_an_opengl_library_is_not_chosen_and_the_package_is_named(fr
     assert not gl.opengl_library_loads() and not gl.egl_works()
     assert gl.select_backend() is None and "MUJOCO_GL" not in os.environ
     assert "egl did not work" in gl.last_choice
-    assert "no OpenGL library for PyOpenGL" in gl.last_choice and "apt-get install libopengl0" in gl.last_choice
+    assert "an OpenGL library beside it" in gl.last_choice and "apt-get install libegl1 libopengl0" in gl.last_choice
     fresh_backend_choice.setattr(gl, "library_loads", lambda name: name in (gl.EGL_LOADER, "libOpenGL.so.0"))
-    assert gl.opengl_library_loads() and not gl.opengl_library_missing()
+    assert gl.opengl_library_loads() and not gl.pyopengl_egl_missing()
     fresh_backend_choice.setattr(gl, "egl_works", lambda: False)  # EGL failing for another reason
     assert gl.select_backend() is None and "libopengl0" not in gl.last_choice  # names no such library
+    fresh_backend_choice.setattr(gl, "library_loads", lambda name: False)  # no EGL loader either
+    assert gl.select_backend() is None and "apt-get install libegl1 libopengl0" in gl.last_choice
 
 
 def test_a_users_egl_that_pyopengl_cannot_load_is_dropped_with_a_warning(fresh_backend_choice):
