@@ -218,6 +218,27 @@ def mujoco_gl_values() -> tuple[str, ...]:
     return values + extra.get(platform.system(), ())
 
 
+#: The ``MUJOCO_GL`` values whose MuJoCo module requires ``PYOPENGL_PLATFORM`` to be the same
+#: value (or unset): MuJoCo's EGL and OSMesa modules refuse any other, at import (MuJoCo 3) or
+#: when a renderer is made (MuJoCo 4).
+PYOPENGL_PLATFORMS = ("egl", "osmesa")
+
+
+def match_pyopengl_platform(backend: str) -> None:
+    """Set ``PYOPENGL_PLATFORM`` to ``backend`` (``egl`` or ``osmesa``), the only value with which
+    MuJoCo renders through it. A different value the user set is replaced, with a warning."""
+    users = os.environ.get("PYOPENGL_PLATFORM", "").strip()
+    if users and users.lower() != backend:
+        warnings.warn(
+            f"PYOPENGL_PLATFORM={users!r} does not match MUJOCO_GL={backend}, and MuJoCo renders with "
+            f"MUJOCO_GL={backend} only under PYOPENGL_PLATFORM={backend}; labsupport sets that. "
+            "Unset PYOPENGL_PLATFORM (or set it to the same value as MUJOCO_GL) to silence this.",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+    os.environ["PYOPENGL_PLATFORM"] = backend
+
+
 def select_backend() -> str | None:
     """Set ``MUJOCO_GL`` (and ``PYOPENGL_PLATFORM``) unless the user already chose (an empty
     ``MUJOCO_GL`` counts as no choice; one MuJoCo would refuse, and ``egl`` where PyOpenGL cannot
@@ -232,6 +253,8 @@ def select_backend() -> str | None:
     Windows nothing is set and MuJoCo's own default is in force (returned as ``"default"``).
     On Linux, NVIDIA's EGL is first made visible to glvnd where no vendor file names it
     (:func:`list_nvidia_egl`), also when the user set ``MUJOCO_GL=egl`` beforehand.
+    ``PYOPENGL_PLATFORM`` is made to agree with an ``egl`` or ``osmesa`` backend
+    (:func:`match_pyopengl_platform`); set by the user to one of them, it puts that backend first.
     Returns the backend in force, or None.
     """
     global last_choice, user_backend
@@ -256,6 +279,8 @@ def select_backend() -> str | None:
         )
         del os.environ["MUJOCO_GL"]
     user_backend = None
+    if chosen.strip().lower() in PYOPENGL_PLATFORMS and "mujoco" not in sys.modules:
+        match_pyopengl_platform(chosen.strip().lower())
     notes = " (NVIDIA's EGL listed by labsupport)" if on_linux() and list_nvidia_egl() else ""
     if on_linux() and nvidia_egl_missing():
         notes += f"; {NVIDIA_EGL_ADVICE}"
@@ -279,16 +304,19 @@ def select_backend() -> str | None:
         last_choice = f"MuJoCo's default backend for {platform.system()} (MUJOCO_GL unset)"
         return "default"
     tried = []
-    # (backend, whether it works here, PyOpenGL's platform for it, what to report if not)
-    for backend, works, pyopengl, failed in (
-        ("egl", egl_works, "egl", "egl did not work"),
-        ("osmesa", osmesa_works, "osmesa", "osmesa did not work"),
-        ("glfw", display_open, None, "no display is open for glfw"),  # PyOpenGL's default: GLX
-    ):
+    # (backend, whether it works here, what to report if not); a PYOPENGL_PLATFORM the user set
+    # to egl or osmesa puts that backend first
+    candidates = [
+        ("egl", egl_works, "egl did not work"),
+        ("osmesa", osmesa_works, "osmesa did not work"),
+        ("glfw", display_open, "no display is open for glfw"),  # PyOpenGL's default: GLX
+    ]
+    candidates.sort(key=lambda candidate: candidate[0] != os.environ.get("PYOPENGL_PLATFORM", "").strip().lower())
+    for backend, works, failed in candidates:
         if works():
             os.environ["MUJOCO_GL"] = backend
-            if pyopengl:
-                os.environ.setdefault("PYOPENGL_PLATFORM", pyopengl)
+            if backend in PYOPENGL_PLATFORMS:
+                match_pyopengl_platform(backend)
             last_choice = f"MUJOCO_GL={backend} (tried first: {', '.join(tried) or 'nothing'}){notes}"
             return backend
         tried.append(failed)

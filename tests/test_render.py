@@ -13,6 +13,7 @@ import shutil
 import subprocess
 import sys
 import types
+import warnings
 from pathlib import Path
 
 import mediapy
@@ -255,6 +256,48 @@ def test_a_users_egl_that_pyopengl_cannot_load_is_dropped_with_a_warning(fresh_b
     fresh_backend_choice.setenv("MUJOCO_GL", "egl")  # with an OpenGL library, the user's choice stands
     fresh_backend_choice.setattr(gl, "library_loads", lambda name: True)
     assert gl.select_backend() == "egl" and gl.user_backend == "egl"
+
+
+def test_a_pyopengl_platform_the_user_set_comes_first_or_is_made_to_agree(fresh_backend_choice):
+    """MuJoCo's EGL and OSMesa modules refuse any other ``PYOPENGL_PLATFORM``. With
+    ``PYOPENGL_PLATFORM=osmesa`` set where EGL works, labsupport chose EGL anyway: ``import
+    labsupport`` then failed inside MuJoCo 3.5's import, and with MuJoCo 4 every renderer failed
+    with advice to install libraries that were there."""
+    fresh_backend_choice.setattr(gl, "on_linux", lambda: True)
+    fresh_backend_choice.setattr(gl, "egl_works", lambda: True)
+    fresh_backend_choice.setattr(gl, "osmesa_works", lambda: True)
+
+    def choose(mujoco_gl: str | None, pyopengl: str) -> str | None:
+        if mujoco_gl:
+            fresh_backend_choice.setenv("MUJOCO_GL", mujoco_gl)
+        else:
+            fresh_backend_choice.delenv("MUJOCO_GL", raising=False)
+        fresh_backend_choice.setenv("PYOPENGL_PLATFORM", pyopengl)
+        return gl.select_backend()
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # an agreeing choice warns of nothing
+        assert choose(None, "osmesa") == "osmesa" and os.environ["PYOPENGL_PLATFORM"] == "osmesa"
+        assert choose(None, " EGL ") == "egl" and os.environ["PYOPENGL_PLATFORM"] == "egl"
+        assert choose("egl", "egl") == "egl" and gl.user_backend == "egl"
+    disagrees = r"PYOPENGL_PLATFORM='osmesa' does not match MUJOCO_GL=egl.*Unset PYOPENGL_PLATFORM"
+    with pytest.warns(RuntimeWarning, match=disagrees):  # the user's two choices disagree: MUJOCO_GL's stands
+        assert choose("egl", "osmesa") == "egl" and gl.user_backend == "egl"
+    assert os.environ["PYOPENGL_PLATFORM"] == "egl"
+    fresh_backend_choice.setattr(gl, "osmesa_works", lambda: False)  # the platform asked for does not work
+    with pytest.warns(RuntimeWarning, match=disagrees):
+        assert choose(None, "osmesa") == "egl"
+    assert os.environ["PYOPENGL_PLATFORM"] == "egl" and "osmesa did not work" in gl.last_choice
+    fresh_backend_choice.setattr(gl, "egl_works", lambda: False)  # glfw is left with PyOpenGL's own default
+    fresh_backend_choice.setattr(gl, "display_open", lambda: True)
+    assert choose(None, "x11") == "glfw" and os.environ["PYOPENGL_PLATFORM"] == "x11"
+
+
+@pytest.mark.skipif(not gl.egl_works(), reason="EGL cannot open a display on this machine")
+def test_egl_renders_beside_a_pyopengl_platform_set_for_osmesa(tmp_path):
+    result, frames = _render_in_subprocess(tmp_path, MUJOCO_GL="egl", PYOPENGL_PLATFORM="osmesa")
+    assert result["backend"] == "egl" and "error" not in result, result
+    _assert_real_frames(frames)
 
 
 def test_a_vendor_variable_naming_missing_files_is_named(fresh_backend_choice, tmp_path):
