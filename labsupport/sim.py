@@ -18,6 +18,10 @@ What the controller sees depends on how the step is taken:
   step sees zeroed derived data), ``mj_step`` only, and steps while the accumulated time is
   below the duration.
 
+A controller only reads the state: one whose first call changes ``data.qpos`` or ``data.qvel``
+(an in-place operation on a view of the state, say) stops the run with a ``ValueError`` that
+says so (:func:`state_written`), before the arm jumps.
+
 Divergence stops the run with :class:`SimulationDiverged`, which names the time and the last
 good state: one of MuJoCo's own instability warnings (after which MuJoCo resets the state), a
 non-finite state, or a joint turning faster than :data:`RUNAWAY_SPEED`. The last one matters:
@@ -281,6 +285,7 @@ def simulate(
     site_xmat = data.site_xmat[site_id].reshape(3, 3) if with_site else None
     warn = memoryview(data.warning.number)  # live view of MuJoCo's warning counters
     start = data.time, data.qpos.copy(), data.qvel.copy()  # time and state before step 0
+    name = getattr(controller, "__name__", "the controller")
     step, step1, step2, get_state = mujoco.mj_step, mujoco.mj_step1, mujoco.mj_step2, mujoco.mj_getState
     log_before = not log_after_step
 
@@ -293,6 +298,8 @@ def simulate(
                 tau = controller(model, data)
             except _CONTROLLER_ERRORS as err:
                 raise _controller_failed(err, model, data) from err
+            if k == 0 and (why := state_written(name, data, start[1], start[2])):  # once per run
+                raise ValueError(why)
             if type(tau) is not np.ndarray or tau.shape != (nu,) or tau.dtype != np.float64:
                 tau = _as_torque(tau, nu)
             if lower is not None:
@@ -442,6 +449,26 @@ def _warn_ctrlrange_bound(model: mujoco.MjModel, t: np.ndarray, tau: np.ndarray,
             RuntimeWarning,
             stacklevel=3,
         )
+
+
+def state_written(name: str, data: mujoco.MjData, qpos_before: np.ndarray, qvel_before: np.ndarray) -> str | None:
+    """Why the controller ``name`` is stopped, if its call changed ``data.qpos`` or ``data.qvel``
+    (``qpos_before`` and ``qvel_before`` as they were before the call), else None. A controller
+    that writes into the state makes the arm jump, and the run then diverges for a reason no gain
+    explains. Most often an array that shares memory with the state was changed in place."""
+    changed = [
+        name
+        for name, before in (("data.qpos", qpos_before), ("data.qvel", qvel_before))
+        if not np.array_equal(getattr(data, name[5:]), before, equal_nan=True)
+    ]
+    if not changed:
+        return None
+    return (
+        f"{name} changed {' and '.join(changed)}, the arm's own state, at t = {data.time:.4f} s; a controller "
+        "must only read it. An in-place operation on an array that shares memory with the state writes into "
+        "it, as e = data.qpos followed by e -= q_d does: compute with new arrays, e = q_d - data.qpos, or take "
+        "a copy first, q = data.qpos.copy(). To evaluate another state, use a scratch mujoco.MjData(model)"
+    )
 
 
 def _as_torque(tau, nu: int) -> np.ndarray:

@@ -497,6 +497,49 @@ def test_controller_returning_none_gets_a_clear_error(arm):
     np.testing.assert_array_equal(as_ints.tau[-1], [1.0, -2.0])
 
 
+@pytest.mark.parametrize("split_step", [False, True])
+def test_a_controller_that_changes_the_state_is_named_before_the_arm_jumps(arm, split_step):
+    """``e = data.qpos; e -= q_d`` changes the state itself: the arm jumped every step and the run
+    "diverged" with advice about gains and signs. The loop names the write at the first step."""
+    model, data = arm
+    if split_step:  # mj_step1/mj_step2 cannot split RK4, the arm's integrator
+        model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    q_d = np.array([0.5, 0.5])
+
+    def aliased_position_error(model, data):
+        e = data.qpos  # a view of the state, not a copy
+        e -= q_d
+        return -100.0 * e - 20.0 * data.qvel + data.qfrc_bias
+
+    def aliased_damping(model, data):
+        v = data.qvel
+        v *= 20.0
+        return 100.0 * (q_d - data.qpos) - v
+
+    for law, changed in ((aliased_position_error, "data.qpos"), (aliased_damping, "data.qvel")):
+        with pytest.raises(
+            ValueError,
+            match=rf"{law.__name__} changed {changed}, the arm's own state, at t = 0.0000 s.*q = data.qpos.copy",
+        ):
+            sim.simulate(model, data, law, 1.0, q0=[0.1, 0.2], qdot0=[0.3, 0.0], split_step=split_step)
+
+    def borrows_data_and_puts_it_back(model, data):  # a controller may evaluate another state, and restore this one
+        q = data.qpos.copy()
+        data.qpos[:] = q_d
+        mujoco.mj_kinematics(model, data)
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        return 10.0 * (q_d - data.qpos) - 1.0 * data.qvel
+
+    def plain(model, data):
+        return 10.0 * (q_d - data.qpos) - 1.0 * data.qvel
+
+    borrowed = sim.simulate(model, data, borrows_data_and_puts_it_back, 0.5, q0=[0.1, 0.2], split_step=split_step)
+    same = sim.simulate(model, data, plain, 0.5, q0=[0.1, 0.2], split_step=split_step)
+    np.testing.assert_array_equal(borrowed.q, same.q)
+    assert np.abs(borrowed.q[-1] - borrowed.q[0]).min() > 0.1  # the arm did move towards q_d
+
+
 def test_sampled_reference_reads_the_samples_of_the_grid():
     ref = lambda t: circle_2d(t, (0.5, 0.2), 0.15, 6.0)  # noqa: E731
     sampled = sample(ref, 0.002, 1.0)

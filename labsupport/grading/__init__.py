@@ -39,7 +39,7 @@ from labsupport.grading.feedback import (
     where_raised,
 )
 from labsupport.grading.stability import Trace, explain_divergence
-from labsupport.sim import CONTROLLER_RAISED, SimulationDiverged
+from labsupport.sim import CONTROLLER_RAISED, SimulationDiverged, state_written
 
 #: Set in the batch grader's sandbox: in-notebook checks then stay quiet (the grader runs its own).
 BATCH_ENV = "LABSUPPORT_GRADING_BATCH"
@@ -120,15 +120,8 @@ class StudentController:
             self.before = (np.empty_like(data.qpos), np.empty_like(data.qvel))  # once per model
         self.before[0][:], self.before[1][:] = data.qpos, data.qvel
         tau = self.fn(model, data, *extra)
-        if not (
-            np.array_equal(self.before[0], data.qpos, equal_nan=True)
-            and np.array_equal(self.before[1], data.qvel, equal_nan=True)
-        ):
-            raise StudentError(
-                f"{self.name} changed data.qpos or data.qvel, the arm's own state (an in-place operation such as "
-                "e = data.qpos; e -= q_d writes into it): compute with new arrays, e.g. e = q_d - data.qpos, or "
-                "take a copy first, data.qpos.copy()"
-            )
+        if why := state_written(self.name, data, *self.before):
+            raise StudentError(why)
         return as_vector(self.name, tau, model.nu, "torque")
 
 
