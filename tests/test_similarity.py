@@ -30,7 +30,7 @@ UNUSUAL = (ROOT / "tests" / "hostile" / "unusual_but_right.ipynb").read_bytes()
 #: Problem 2's master with its three functions written another way.
 UNUSUAL2 = nbformat.writes(unusual_problem2(nbformat.read(ROOT / SPEC2["master"], as_version=4))).encode()
 #: Names a copier changes, as a whole word.
-RENAMES = {"rho": "radius", "theta": "elbow", "q1": "pan", "q2": "lift", "qddot_cmd": "acc", "M": "inertia"}
+RENAMES = {"r": "reach", "theta": "elbow", "q1": "pan", "q2": "lift", "qddot_cmd": "acc", "M": "inertia"}
 
 
 def disguised_copy(spec: dict) -> bytes:
