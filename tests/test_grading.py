@@ -567,6 +567,26 @@ def test_unsafe_opt_out_says_so_in_every_row(tmp_path):
     assert "WARNING" in proc.stderr
 
 
+def test_a_bubblewrap_that_cannot_start_is_quoted_with_each_cause_and_its_remedy(tmp_path, monkeypatch):
+    """Where bubblewrap refuses to start (user namespaces disabled, a Docker container's default
+    profiles, a chroot), the grader quotes it and says what to do in each case."""
+    fake = tmp_path / "bwrap"
+    fake.write_text("#!/bin/sh\necho 'bwrap: Creating new namespace failed: Operation not permitted' >&2\nexit 1\n")
+    fake.chmod(0o755)
+    monkeypatch.setattr(isolation, "find_bwrap", lambda: str(fake))
+    with pytest.raises(isolation.SandboxUnavailable) as refused:
+        isolation.prepare(tmp_path / "layout")
+    said = str(refused.value)
+    assert "(bwrap: Creating new namespace failed: Operation not permitted)" in said
+    for remedy in (
+        "sysctl kernel.unprivileged_userns_clone=1",
+        "--security-opt seccomp=unconfined --security-opt apparmor=unconfined",
+        "Inside a chroot",
+        "--unsafe-no-sandbox",
+    ):
+        assert remedy in said
+
+
 def test_the_sandbox_sees_no_checkout_and_no_forbidden_module(tmp_path):
     layout = isolation.prepare(tmp_path / "layout")
     probe = (

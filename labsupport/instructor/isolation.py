@@ -328,10 +328,13 @@ def _warm_up(layout: Layout) -> None:
     if proc.returncode != 0:
         words = (proc.stderr.strip().splitlines() or ["no message"])[-1]
         raise SandboxUnavailable(
-            f"bubblewrap could not start a sandbox here ({words}). Unprivileged user namespaces may be disabled: "
-            "enable them (sysctl kernel.unprivileged_userns_clone=1, or on Ubuntu 24.04 "
-            "kernel.apparmor_restrict_unprivileged_userns=0), or run the grader where they are allowed. For "
-            "submissions you trust, --unsafe-no-sandbox grades without isolation."
+            f"bubblewrap could not start a sandbox here ({words}). It needs unprivileged user namespaces. Where "
+            "the kernel disables them, enable them (sysctl kernel.unprivileged_userns_clone=1, or on Ubuntu 24.04 "
+            "kernel.apparmor_restrict_unprivileged_userns=0). Inside a Docker container, Docker's default seccomp "
+            "and AppArmor profiles forbid them: grade on the host, or start the container with --security-opt "
+            "seccomp=unconfined --security-opt apparmor=unconfined. Inside a chroot the kernel refuses them "
+            "whatever its settings: grade outside it. For submissions you trust, --unsafe-no-sandbox grades "
+            "without isolation."
         )
 
 
