@@ -311,7 +311,8 @@ def select_backend() -> str | None:
         ("osmesa", osmesa_works, "osmesa did not work"),
         ("glfw", display_open, "no display is open for glfw"),  # PyOpenGL's default: GLX
     ]
-    candidates.sort(key=lambda candidate: candidate[0] != os.environ.get("PYOPENGL_PLATFORM", "").strip().lower())
+    asked = os.environ.get("PYOPENGL_PLATFORM", "").strip().lower()
+    candidates.sort(key=lambda candidate: candidate[0] != asked)
     for backend, works, failed in candidates:
         if works():
             os.environ["MUJOCO_GL"] = backend

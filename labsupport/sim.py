@@ -457,9 +457,9 @@ def state_written(name: str, data: mujoco.MjData, qpos_before: np.ndarray, qvel_
     that writes into the state makes the arm jump, and the run then diverges for a reason no gain
     explains. Most often an array that shares memory with the state was changed in place."""
     changed = [
-        name
-        for name, before in (("data.qpos", qpos_before), ("data.qvel", qvel_before))
-        if not np.array_equal(getattr(data, name[5:]), before, equal_nan=True)
+        f"data.{field}"
+        for field, before in (("qpos", qpos_before), ("qvel", qvel_before))
+        if not np.array_equal(getattr(data, field), before, equal_nan=True)
     ]
     if not changed:
         return None
