@@ -357,6 +357,24 @@ def test_code_built_at_run_time_is_named_and_code_as_written_is_not():
     ]
 
 
+def test_a_notebook_with_more_code_than_the_grader_parses_is_noted_unparsed(monkeypatch):
+    """10 MB of code took Python's parser 6 GB and 40 s in the grader's own process, charged to no
+    submission's limits; past MAX_CODE_CHARS the scan is not made, and the row says so."""
+    below = [(0, "x = 1\n" * 30_000), (4, "exec(code)")]  # 180,010 characters: scanned
+    assert judge.run_time_code_note(below).startswith("cell 5 ('exec(code)') runs code built while the notebook runs")
+    assert judge.run_time_code_note([(0, "x = 1\n")]) is None
+
+    def no_parse(*args, **kwargs):
+        raise AssertionError("the grader parsed a notebook past its bound")
+
+    monkeypatch.setattr(judge.ast, "parse", no_parse)
+    huge = [(0, "x = 1\n" * 2_000_000), (4, "exec(code)")]
+    assert judge.run_time_code_note(huge) == (
+        "the notebook holds 12,000,010 characters of code, more than the 200,000 the grader scans for code "
+        "built while the notebook runs: the instructor reads it by hand"
+    )
+
+
 def test_other_rows_are_as_without_the_hostile_set(batch):
     """The master's and the blank notebook's rows and feedback are byte-identical to a batch of just them."""
     base = _grades(batch["tmp"] / "out0")

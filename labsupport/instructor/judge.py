@@ -497,6 +497,12 @@ def read_cells(text: bytes) -> list[tuple[int, str]]:
     return cells
 
 
+#: The most code [characters] the grader parses in its own process for the instructor's leads
+#: (the scan for code built at run time, the shared-code report), where no time or memory limit
+#: charges it to the submission: a right answer is a few thousand characters, while 10 MB of code
+#: takes Python's parser about 6 GB and 40 s.
+MAX_CODE_CHARS = 200_000
+
 #: Calls that run code given as data: what they run is not in the notebook's text.
 _RUNS_DATA = frozenset(
     {"exec", "eval", "compile", "builtins.exec", "builtins.eval", "builtins.compile", "marshal.loads"}
@@ -531,6 +537,25 @@ def code_built_at_run_time(cells: list[tuple[int, str]]) -> list[str]:
                 found.append(_cell_named(k, source))
                 break
     return found
+
+
+def run_time_code_note(cells: list[tuple[int, str]]) -> str | None:
+    """The row's note on code built at run time (:func:`code_built_at_run_time`), or None; for a
+    notebook with more than :data:`MAX_CODE_CHARS` of code, a note that it was not scanned."""
+    size = sum(len(source) for _, source in cells)
+    if size > MAX_CODE_CHARS:
+        return (
+            f"the notebook holds {size:,} characters of code, more than the {MAX_CODE_CHARS:,} the grader scans "
+            "for code built while the notebook runs: the instructor reads it by hand"
+        )
+    built = code_built_at_run_time(cells)
+    if not built:
+        return None
+    return (
+        f"{', '.join(built[:3])} run{'s' if len(built) == 1 else ''} code built while the notebook runs "
+        "(exec, eval or compile of a string it makes), which is not in the notebook's text: the instructor "
+        "reads it by hand"
+    )
 
 
 def _cell_named(index: int, source: str) -> str:
@@ -617,13 +642,8 @@ def grade(
     command, env, cwd = start()
     probe = SandboxProbe(command, cells, budget, env=env, cwd=cwd, limits=limits)
     notes: list[str] = []
-    built = code_built_at_run_time(cells)
-    if built:
-        notes.append(
-            f"{', '.join(built[:3])} run{'s' if len(built) == 1 else ''} code built while the notebook runs "
-            "(exec, eval or compile of a string it makes), which is not in the notebook's text: the instructor "
-            "reads it by hand"
-        )
+    if note := run_time_code_note(cells):
+        notes.append(note)
     scores, messages, statuses = {}, {}, {}
     try:
         try:

@@ -65,9 +65,9 @@ from labsupport.instructor.outputs import clean_text, csv_cell
 FLAG_SHARE = 0.6
 #: The name the master's solution goes by in the reports.
 MASTER = "master solution"
-#: A notebook with more own code than this [characters] is not compared: a right answer is a
-#: few thousand, and fingerprinting this much takes about 2 s.
-MAX_CODE_CHARS = 200_000
+#: A notebook with more own code than this [characters] is not compared (fingerprinting this
+#: much takes about 2 s): the grader's one bound on the code it reads for the instructor's leads.
+MAX_CODE_CHARS = judge.MAX_CODE_CHARS
 
 
 @dataclass(frozen=True)
