@@ -279,8 +279,6 @@ def select_backend() -> str | None:
         )
         del os.environ["MUJOCO_GL"]
     user_backend = None
-    if chosen.strip().lower() in PYOPENGL_PLATFORMS and "mujoco" not in sys.modules:
-        match_pyopengl_platform(chosen.strip().lower())
     notes = " (NVIDIA's EGL listed by labsupport)" if on_linux() and list_nvidia_egl() else ""
     if on_linux() and nvidia_egl_missing():
         notes += f"; {NVIDIA_EGL_ADVICE}"
@@ -295,6 +293,8 @@ def select_backend() -> str | None:
         )
     if os.environ.get("MUJOCO_GL", "").strip():  # empty is no choice: MuJoCo would take GLFW's default
         user_backend = os.environ["MUJOCO_GL"]
+        if user_backend.strip().lower() in PYOPENGL_PLATFORMS and "mujoco" not in sys.modules:
+            match_pyopengl_platform(user_backend.strip().lower())
         last_choice = f"MUJOCO_GL={user_backend} was set before labsupport was imported{notes}"
         return user_backend
     if "mujoco" in sys.modules:

@@ -246,9 +246,13 @@ def test_a_users_egl_that_pyopengl_cannot_load_is_dropped_with_a_warning(fresh_b
     fresh_backend_choice.setattr(gl, "NVIDIA_DRIVER_FILES", ())
     fresh_backend_choice.setattr(gl, "library_loads", only_the_egl_loader_loads)
     fresh_backend_choice.setattr(gl, "osmesa_works", lambda: True)
-    with pytest.warns(RuntimeWarning, match=r"MUJOCO_GL='egl' cannot work here: .*apt-get install libegl1 libopengl0"):
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
         assert gl.select_backend() == "osmesa"
-    assert os.environ["MUJOCO_GL"] == "osmesa" and gl.user_backend is None
+    assert len(said) == 1, [str(w.message) for w in said]  # the dropped choice, and no other
+    assert re.search(r"MUJOCO_GL='egl' cannot work here: .*apt-get install libegl1 libopengl0", str(said[0].message))
+    assert os.environ["MUJOCO_GL"] == "osmesa" and os.environ["PYOPENGL_PLATFORM"] == "osmesa"
+    assert gl.user_backend is None
     fresh_backend_choice.setenv("MUJOCO_GL", "egl")  # no EGL loader either: MuJoCo's import fails the same way
     fresh_backend_choice.setattr(gl, "library_loads", lambda name: False)
     with pytest.warns(RuntimeWarning, match=r"MUJOCO_GL='egl' cannot work here: .*EGL loader \(libEGL.so.1\)"):
