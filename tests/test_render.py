@@ -163,8 +163,11 @@ def test_a_mujoco_gl_that_mujoco_would_refuse_is_dropped_with_a_warning(fresh_ba
     with pytest.warns(RuntimeWarning, match="MUJOCO_GL='bogus' is not a value MuJoCo knows"):
         assert gl.select_backend() == "egl"
     assert os.environ["MUJOCO_GL"] == "egl" and gl.user_backend is None
+    fresh_backend_choice.delenv("PYOPENGL_PLATFORM")  # a new process: only the user's settings
     fresh_backend_choice.setenv("MUJOCO_GL", " OSMesa ")  # MuJoCo reads it stripped, in lower case
-    assert gl.select_backend() == " OSMesa " and gl.user_backend == " OSMesa "
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert gl.select_backend() == " OSMesa " and gl.user_backend == " OSMesa "
 
 
 def test_an_empty_mujoco_gl_is_no_choice(fresh_backend_choice):
@@ -257,9 +260,12 @@ def test_a_users_egl_that_pyopengl_cannot_load_is_dropped_with_a_warning(fresh_b
     fresh_backend_choice.setattr(gl, "library_loads", lambda name: False)
     with pytest.warns(RuntimeWarning, match=r"MUJOCO_GL='egl' cannot work here: .*EGL loader \(libEGL.so.1\)"):
         assert gl.select_backend() == "osmesa"
+    fresh_backend_choice.delenv("PYOPENGL_PLATFORM")  # a new process: only the user's settings
     fresh_backend_choice.setenv("MUJOCO_GL", "egl")  # with an OpenGL library, the user's choice stands
     fresh_backend_choice.setattr(gl, "library_loads", lambda name: True)
-    assert gl.select_backend() == "egl" and gl.user_backend == "egl"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert gl.select_backend() == "egl" and gl.user_backend == "egl"
 
 
 def test_a_pyopengl_platform_the_user_set_comes_first_or_is_made_to_agree(fresh_backend_choice):
