@@ -38,6 +38,7 @@ get their own thread's messages.
 
 from __future__ import annotations
 
+import functools
 import sys
 import threading
 import warnings
@@ -285,7 +286,7 @@ def simulate(
     site_xmat = data.site_xmat[site_id].reshape(3, 3) if with_site else None
     warn = memoryview(data.warning.number)  # live view of MuJoCo's warning counters
     start = data.time, data.qpos.copy(), data.qvel.copy()  # time and state before step 0
-    name = getattr(controller, "__name__", "the controller")
+    name = controller_name(controller)
     step, step1, step2, get_state = mujoco.mj_step, mujoco.mj_step1, mujoco.mj_step2, mujoco.mj_getState
     log_before = not log_after_step
 
@@ -449,6 +450,18 @@ def _warn_ctrlrange_bound(model: mujoco.MjModel, t: np.ndarray, tau: np.ndarray,
             RuntimeWarning,
             stacklevel=3,
         )
+
+
+def controller_name(controller: Callable) -> str:
+    """How the messages name ``controller``: its function's name (``pd_torque``); "the lambda
+    controller" for a lambda; the wrapped function's name for a ``functools.partial``; "the
+    ``Class`` object" for a callable object without a name."""
+    while isinstance(controller, functools.partial):
+        controller = controller.func
+    name = getattr(controller, "__name__", None)
+    if name == "<lambda>":
+        return "the lambda controller"
+    return name if isinstance(name, str) else f"the {type(controller).__name__} object"
 
 
 def state_written(name: str, data: mujoco.MjData, qpos_before: np.ndarray, qvel_before: np.ndarray) -> str | None:

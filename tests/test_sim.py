@@ -540,6 +540,26 @@ def test_a_controller_that_changes_the_state_is_named_before_the_arm_jumps(arm, 
     assert np.abs(borrowed.q[-1] - borrowed.q[0]).min() > 0.1  # the arm did move towards q_d
 
 
+def test_messages_name_a_lambda_a_partial_and_a_callable_object(arm):
+    """A lambda was named "<lambda>" and a functools.partial "the controller"."""
+    model, data = arm
+
+    def damping(model, data, gain):
+        return -gain * data.qvel
+
+    class Damping:
+        def __call__(self, model, data):
+            return -data.qvel
+
+    assert sim.controller_name(damping) == "damping"
+    assert sim.controller_name(partial(partial(damping), gain=2.0)) == "damping"
+    assert sim.controller_name(lambda m, d: -d.qvel) == "the lambda controller"
+    assert sim.controller_name(Damping()) == "the Damping object"
+    writes = lambda m, d: np.subtract(d.qpos, 0.1, out=d.qpos) * 0.0  # noqa: E731
+    with pytest.raises(ValueError, match=r"^the lambda controller changed data\.qpos"):
+        sim.simulate(model, data, writes, 0.01)
+
+
 def test_sampled_reference_reads_the_samples_of_the_grid():
     ref = lambda t: circle_2d(t, (0.5, 0.2), 0.15, 6.0)  # noqa: E731
     sampled = sample(ref, 0.002, 1.0)

@@ -39,7 +39,7 @@ from labsupport.grading.feedback import (
     where_raised,
 )
 from labsupport.grading.stability import Trace, explain_divergence
-from labsupport.sim import CONTROLLER_RAISED, SimulationDiverged, state_written
+from labsupport.sim import CONTROLLER_RAISED, SimulationDiverged, controller_name, state_written
 
 #: Set in the batch grader's sandbox: in-notebook checks then stay quiet (the grader runs its own).
 BATCH_ENV = "LABSUPPORT_GRADING_BATCH"
@@ -102,7 +102,7 @@ class StudentController:
 
     def __init__(self, fn: Callable, *args):
         self.fn, self.args = fn, args
-        self.name = getattr(fn, "__name__", "the controller")
+        self.name = controller_name(fn)
         self.moving = len(args) == 1 and callable(args[0])
         self.trace = Trace()  # the states of the last run, to explain a divergence
         self.before = (np.empty(0), np.empty(0))  # the state before each call, kept to see it changed
