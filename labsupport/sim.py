@@ -194,6 +194,9 @@ def simulate(
     Args:
         controller: ``controller(model, data) -> tau`` with ``tau`` of shape ``(nu,)``; it reads
             the time as ``data.time``. It may return the same (preallocated) array every step.
+            It must only read the state: a first call that changes ``data.qpos`` or
+            ``data.qvel`` stops the run (:func:`state_written`); later calls are not checked,
+            which keeps the check out of the loop's cost per step.
         q0, qdot0: initial state; they override the keyframe's when both are given.
         site: name of the end-effector site to record (and to compare with ``reference``).
         reference: ``reference(t)`` returning a :class:`~labsupport.trajectories.Reference`, whose
@@ -216,7 +219,8 @@ def simulate(
         lab_timing: step as the lab's UR5e loop (see the module's description).
 
     Raises:
-        ValueError: bad arguments, or a controller returning the wrong shape.
+        ValueError: bad arguments, a controller returning the wrong shape, or one whose first
+            call changed the state.
         SimulationDiverged: MuJoCo flagged bad positions, velocities, accelerations or controls
             (it resets the state when it does), or the state became non-finite. The error names
             the time and the last good state.
