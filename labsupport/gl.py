@@ -239,11 +239,55 @@ def match_pyopengl_platform(backend: str) -> None:
     os.environ["PYOPENGL_PLATFORM"] = backend
 
 
+#: What to do where PyOpenGL was imported before labsupport with a platform MuJoCo cannot render through.
+IMPORT_ORDER_ADVICE = "restart the kernel and import labsupport first, before anything that imports OpenGL"
+
+
+def pyopengl_platform() -> str | None:
+    """The platform PyOpenGL took at its import (``glx``, ``egl``, ``osmesa``, ...), which it keeps
+    for the life of the process; None where PyOpenGL is not imported yet."""
+    loaded = getattr(sys.modules.get("OpenGL.platform"), "PLATFORM", None)
+    return None if loaded is None else type(loaded).__module__.rpartition(".")[2]  # OpenGL.platform.glx: glx
+
+
+def pyopengl_refuses(backend: str) -> str | None:
+    """Why MuJoCo's ``backend`` cannot work in this process, or None. MuJoCo's EGL and OSMesa back
+    ends work only through PyOpenGL's platform of the same name (they demand
+    ``PYOPENGL_PLATFORM=<backend>``), and PyOpenGL keeps the platform it took at its import
+    (:func:`pyopengl_platform`). Imported before labsupport without ``PYOPENGL_PLATFORM``, it takes
+    GLX: MuJoCo's import with ``MUJOCO_GL=osmesa`` then fails inside PyOpenGL ("'GLXPlatform'
+    object has no attribute 'OSMesa'"), simulation and all, and MuJoCo 3's EGL back end cannot
+    open a display."""
+    taken = pyopengl_platform()
+    if taken is None or backend not in PYOPENGL_PLATFORMS or taken == backend:
+        return None
+    return (
+        f"PyOpenGL was imported before labsupport, with its {taken} platform, and MuJoCo's {backend} back end "
+        f"works only with PyOpenGL's {backend} platform"
+    )
+
+
+def unusable_choice(chosen: str) -> str | None:
+    """Why MuJoCo's import would fail on the ``MUJOCO_GL`` value ``chosen``, or None: a value it
+    does not know, ``egl`` where PyOpenGL cannot load EGL (:func:`pyopengl_egl_missing`), or a
+    backend that a PyOpenGL imported earlier cannot serve (:func:`pyopengl_refuses`). Once MuJoCo
+    is imported, its choice is made and nothing is unusable."""
+    value = chosen.strip().lower()
+    if not value or "mujoco" in sys.modules:
+        return None
+    if value not in mujoco_gl_values():
+        return f"is not a value MuJoCo knows (on {platform.system()}: {', '.join(mujoco_gl_values())}): fix or unset it"
+    if on_linux() and value == "egl" and pyopengl_egl_missing():
+        return f"cannot work here: {EGL_LIBRARIES_ADVICE}"
+    if refused := pyopengl_refuses(value):
+        return f"cannot work in this process: {refused}: {IMPORT_ORDER_ADVICE}"
+    return None
+
+
 def select_backend() -> str | None:
     """Set ``MUJOCO_GL`` (and ``PYOPENGL_PLATFORM``) unless the user already chose (an empty
-    ``MUJOCO_GL`` counts as no choice; one MuJoCo would refuse, and ``egl`` where PyOpenGL cannot
-    load EGL (:func:`pyopengl_egl_missing`), are dropped with a warning, since MuJoCo's import
-    would fail on them).
+    ``MUJOCO_GL`` counts as no choice; one on which MuJoCo's import would fail
+    (:func:`unusable_choice`) is dropped with a warning).
 
     On Linux, EGL is taken if it really opens a display and PyOpenGL has an OpenGL library to
     use with it (:func:`egl_works`), else OSMesa if it
@@ -259,21 +303,9 @@ def select_backend() -> str | None:
     """
     global last_choice, user_backend
     chosen = os.environ.get("MUJOCO_GL", "")
-    if chosen.strip() and chosen.strip().lower() not in mujoco_gl_values():
-        # MuJoCo's import would refuse it, and with it every simulation of the course
+    if why_dropped := unusable_choice(chosen):  # MuJoCo's import would fail, and every simulation with it
         warnings.warn(
-            f"MUJOCO_GL={chosen!r} is not a value MuJoCo knows (on {platform.system()}: "
-            f"{', '.join(mujoco_gl_values())}); labsupport ignores it and picks a backend itself. "
-            "Fix or unset MUJOCO_GL to silence this.",
-            RuntimeWarning,
-            stacklevel=2,
-        )
-        del os.environ["MUJOCO_GL"]
-    elif on_linux() and chosen.strip().lower() == "egl" and "mujoco" not in sys.modules and pyopengl_egl_missing():
-        # MuJoCo's import would fail inside PyOpenGL, and with it every simulation of the course
-        warnings.warn(
-            f"MUJOCO_GL={chosen!r} cannot work here: {EGL_LIBRARIES_ADVICE}. labsupport ignores it and "
-            "picks a backend itself.",
+            f"MUJOCO_GL={chosen!r} {why_dropped}; labsupport ignores it and picks a backend itself.",
             RuntimeWarning,
             stacklevel=2,
         )
@@ -314,6 +346,9 @@ def select_backend() -> str | None:
     asked = os.environ.get("PYOPENGL_PLATFORM", "").strip().lower()
     candidates.sort(key=lambda candidate: candidate[0] != asked)
     for backend, works, failed in candidates:
+        if pyopengl_refuses(backend):
+            tried.append(f"{backend} cannot work beside PyOpenGL's {pyopengl_platform()} platform")
+            continue
         if works():
             os.environ["MUJOCO_GL"] = backend
             if backend in PYOPENGL_PLATFORMS:

@@ -46,6 +46,12 @@ INSTALL_HINT = (
     "anything imports mujoco. The simulation results do not need a video."
 )
 
+IMPORT_ORDER_HINT = (
+    "PyOpenGL was imported before labsupport, and it keeps the platform it took then, which MuJoCo's "
+    f"offscreen back ends (EGL, OSMesa) cannot render through: {gl.IMPORT_ORDER_ADVICE}. "
+    "The simulation results do not need a video."
+)
+
 FFMPEG_HINT = (
     "Encoding the video needs the ffmpeg program, which was not found. From the notebook, "
     "`%pip install imageio-ffmpeg` brings one for any system (labsupport finds it without a kernel "
@@ -101,7 +107,10 @@ def make_renderer(model: mujoco.MjModel, width: int = 320, height: int = 240) ->
         )
     backend = os.environ.get("MUJOCO_GL")
     if not backend and gl.on_linux():  # on Linux, MuJoCo's default (GLFW) needs a display
-        raise RenderingUnavailable(f"No OpenGL backend for MuJoCo ({gl.last_choice}). {INSTALL_HINT}")
+        blocked = all(gl.pyopengl_refuses(b) for b in gl.PYOPENGL_PLATFORMS)  # installing would not help
+        raise RenderingUnavailable(
+            f"No OpenGL backend for MuJoCo ({gl.last_choice}). {IMPORT_ORDER_HINT if blocked else INSTALL_HINT}"
+        )
     gpu_unused = gl.on_linux() and gl.nvidia_egl_missing()
     try:
         renderer = mujoco.Renderer(model, height=height, width=width)

@@ -136,9 +136,11 @@ def unset_env(monkeypatch, *names: str) -> None:
 
 @pytest.fixture
 def fresh_backend_choice(monkeypatch):
-    """select_backend as on a first import: no MUJOCO_GL, mujoco not imported (restored after)."""
+    """select_backend as on a first import: no MUJOCO_GL, neither mujoco nor PyOpenGL imported
+    (restored after)."""
     unset_env(monkeypatch, "MUJOCO_GL", "PYOPENGL_PLATFORM")
     monkeypatch.delitem(sys.modules, "mujoco", raising=False)
+    monkeypatch.delitem(sys.modules, "OpenGL.platform", raising=False)  # PyOpenGL's platform: not chosen yet
     monkeypatch.setattr(gl, "last_choice", gl.last_choice)
     monkeypatch.setattr(gl, "user_backend", gl.user_backend)
     return monkeypatch
@@ -308,6 +310,61 @@ def test_egl_renders_beside_a_pyopengl_platform_set_for_osmesa(tmp_path):
     result, frames = _render_in_subprocess(tmp_path, MUJOCO_GL="egl", PYOPENGL_PLATFORM="osmesa")
     assert result["backend"] == "egl" and "error" not in result, result
     _assert_real_frames(frames)
+
+
+def test_a_backend_that_a_pyopengl_imported_first_cannot_serve_is_not_chosen(fresh_backend_choice):
+    """PyOpenGL fixes its platform when first imported (GLX, without PYOPENGL_PLATFORM). With
+    ``import OpenGL.GL`` before ``import labsupport`` and ``MUJOCO_GL=osmesa``, labsupport's import
+    failed inside PyOpenGL: "'GLXPlatform' object has no attribute 'OSMesa'"."""
+
+    def loaded(name: str) -> None:  # PyOpenGL imported, with its platform module OpenGL.platform.<name>
+        platform_class = type("Platform", (), {"__module__": f"OpenGL.platform.{name}"})
+        fresh_backend_choice.setitem(sys.modules, "OpenGL.platform", types.SimpleNamespace(PLATFORM=platform_class()))
+
+    fresh_backend_choice.setattr(gl, "on_linux", lambda: True)
+    fresh_backend_choice.setattr(gl, "egl_works", lambda: True)
+    fresh_backend_choice.setattr(gl, "osmesa_works", lambda: True)
+    fresh_backend_choice.setattr(gl, "display_open", lambda: False)
+    loaded("glx")
+    refused = r"PyOpenGL was imported before labsupport, with its glx platform, and MuJoCo's {} back end"
+    assert re.match(refused.format("osmesa"), gl.pyopengl_refuses("osmesa"))
+    assert re.match(refused.format("egl"), gl.pyopengl_refuses("egl")) and gl.pyopengl_refuses("glfw") is None
+    fresh_backend_choice.setenv("MUJOCO_GL", "osmesa")
+    with pytest.warns(RuntimeWarning, match=r"MUJOCO_GL='osmesa' cannot work in this process: .*restart the kernel"):
+        assert gl.select_backend() is None  # and simulation goes on: MuJoCo's import works
+    assert "MUJOCO_GL" not in os.environ and gl.user_backend is None
+    assert "egl cannot work beside PyOpenGL's glx platform, osmesa cannot" in gl.last_choice
+    fresh_backend_choice.setattr(gl, "display_open", lambda: True)
+    assert gl.select_backend() == "glfw"  # a desktop: GLX is GLFW's own platform
+    loaded("egl")  # imported with PYOPENGL_PLATFORM=egl: EGL serves, OSMesa does not
+    fresh_backend_choice.setenv("MUJOCO_GL", "osmesa")
+    with pytest.warns(RuntimeWarning, match=r"MUJOCO_GL='osmesa' cannot work in this process: .*its egl platform"):
+        assert gl.select_backend() == "egl"
+    loaded("osmesa")
+    fresh_backend_choice.delenv("MUJOCO_GL")
+    fresh_backend_choice.setenv("PYOPENGL_PLATFORM", "osmesa")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert gl.select_backend() == "osmesa"
+    fresh_backend_choice.delenv("PYOPENGL_PLATFORM")  # unset since: EGL, which works, is still refused
+    fresh_backend_choice.delenv("MUJOCO_GL")
+    assert gl.select_backend() == "osmesa" and "egl cannot work beside PyOpenGL's osmesa platform" in gl.last_choice
+    fresh_backend_choice.setitem(sys.modules, "mujoco", types.ModuleType("mujoco"))  # MuJoCo chose already
+    fresh_backend_choice.setenv("MUJOCO_GL", "egl")
+    assert gl.unusable_choice("egl") is None and gl.select_backend() == "egl"
+
+
+@pytest.mark.skipif(not gl.egl_works(), reason="EGL cannot open a display on this machine")
+def test_pyopengl_imported_first_leaves_the_import_working_and_says_what_to_do(tmp_path):
+    first = "import OpenGL.GL\n" + SCRIPT
+    result = _run_script(tmp_path, first, str(tmp_path / "frames.npy"), MUJOCO_GL="osmesa", PYOPENGL_PLATFORM="egl")
+    assert result["backend"] == "egl" and "error" not in result, result  # PyOpenGL's EGL platform: EGL renders
+    _assert_real_frames(np.load(tmp_path / "frames.npy"))
+    result = _run_script(tmp_path, first, str(tmp_path / "none.npy"), MUJOCO_GL="osmesa")  # its GLX platform
+    assert result["backend"] is None and not (tmp_path / "none.npy").exists(), result
+    assert "osmesa cannot work beside PyOpenGL's glx platform" in result["error"]
+    assert result["error"].endswith(render.IMPORT_ORDER_HINT) and "apt-get" not in result["error"]  # nothing to install
+    assert result["show_returned_none"]
 
 
 def test_a_vendor_variable_naming_missing_files_is_named(fresh_backend_choice, tmp_path):
