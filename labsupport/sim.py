@@ -468,23 +468,35 @@ def controller_name(controller: Callable) -> str:
     return name if isinstance(name, str) else f"the {type(controller).__name__} object"
 
 
+#: What to do about a controller that changed the arm's state (see :func:`state_written`).
+STATE_WRITE_ADVICE = (
+    "a controller must only read the state. An in-place operation on an array that shares memory with the "
+    "state writes into it, as e = data.qpos followed by e -= q_d does: compute with new arrays, "
+    "e = q_d - data.qpos, or take a copy first, q = data.qpos.copy(). To evaluate another state, use a "
+    "scratch mujoco.MjData(model)"
+)
+
+
+def state_changes(data: mujoco.MjData, qpos_before, qvel_before) -> list[str]:
+    """The state fields, ``"data.qpos"`` and ``"data.qvel"``, whose values in ``data`` differ
+    from ``qpos_before`` and ``qvel_before`` (NaN equal to NaN)."""
+    return [
+        f"data.{field}"
+        for field, before in (("qpos", qpos_before), ("qvel", qvel_before))
+        if not np.array_equal(getattr(data, field), before, equal_nan=True)
+    ]
+
+
 def state_written(name: str, data: mujoco.MjData, qpos_before: np.ndarray, qvel_before: np.ndarray) -> str | None:
     """Why the controller ``name`` is stopped, if its call changed ``data.qpos`` or ``data.qvel``
     (``qpos_before`` and ``qvel_before`` as they were before the call), else None. A controller
     that writes into the state makes the arm jump, and the run then diverges for a reason no gain
     explains. Most often an array that shares memory with the state was changed in place."""
-    changed = [
-        f"data.{field}"
-        for field, before in (("qpos", qpos_before), ("qvel", qvel_before))
-        if not np.array_equal(getattr(data, field), before, equal_nan=True)
-    ]
+    changed = state_changes(data, qpos_before, qvel_before)
     if not changed:
         return None
     return (
-        f"{name} changed {' and '.join(changed)}, the arm's own state, at t = {data.time:.4f} s; a controller "
-        "must only read it. An in-place operation on an array that shares memory with the state writes into "
-        "it, as e = data.qpos followed by e -= q_d does: compute with new arrays, e = q_d - data.qpos, or take "
-        "a copy first, q = data.qpos.copy(). To evaluate another state, use a scratch mujoco.MjData(model)"
+        f"{name} changed {' and '.join(changed)}, the arm's own state, at t = {data.time:.4f} s; {STATE_WRITE_ADVICE}"
     )
 
 

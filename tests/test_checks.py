@@ -1478,6 +1478,42 @@ def test_a_law_that_writes_into_the_arms_state_is_told_so_not_that_it_diverged(c
     assert np.abs(log.q[-1] - q_d).max() < 0.05
 
 
+def test_a_law_check_names_a_write_into_the_state_and_keeps_the_score(capsys):
+    """The law checks hand each call a copy of the state, so a law that writes into it is judged
+    on its torque alone; the message now also says that it wrote, which the student's own run
+    stops at, whether the torque was right (pass) or not (the mistake is still named)."""
+
+    def pd_torque(model, data, q_d, Kp, Kd):
+        e = data.qpos
+        e -= q_d  # writes into data.qpos
+        return -Kp * e - Kd * data.qvel
+
+    def pd_wrong(model, data, q_d, Kp, Kd):
+        e = data.qpos
+        e -= q_d
+        return Kp * e - Kd * data.qvel  # and the spring term's sign is wrong
+
+    def pd_right(model, data, q_d, Kp, Kd):
+        return Kp * (q_d - data.qpos) - Kd * data.qvel
+
+    note = "Note: pd_torque changed data.qpos of the state the check handed it; a controller must only read the state."
+    result = check("p1_pd", {"pd_torque": pd_torque})
+    assert (result.score, result.status) == (1.0, "pass") and note in result.message
+    assert "e = q_d - data.qpos" in result.message and "No points are lost here" in result.message
+    result = check("p1_pd", {"pd_torque": pd_wrong})
+    assert result.score == 0 and "the spring term has the wrong sign" in result.message and note in result.message
+    result = check("p1_pd", {"pd_torque": pd_right})
+    assert result.score == 1 and "Note:" not in result.message
+
+    def ct_joint_torque(model, data, q_d, Kp, Kd):  # right, and it writes into data.qvel
+        qdot = data.qvel
+        qdot *= -1.0
+        return mass_matrix(model, data) @ (Kp * (q_d - data.qpos) + Kd * qdot) + bias_forces(data)
+
+    result = check("p1_ct", {"ct_joint_torque": ct_joint_torque})
+    assert result.score == 1 and "Note: ct_joint_torque changed data.qvel" in result.message
+
+
 # --- what a student installs holds no answer ------------------------------------------------------------
 
 

@@ -711,6 +711,25 @@ def test_the_batch_names_the_line_of_the_students_code_that_raised(tmp_path):
     assert "has 6 rows, translation then rotation" in reason
 
 
+def test_a_law_that_writes_into_the_state_it_is_handed_keeps_its_points_and_is_told_so(tmp_path):
+    """``e = data.qpos; e -= q_d`` returns the right torque, and each call of the grader gets its
+    own copy of the state, so the law keeps its points; but the sandbox now sees the write and the
+    row's message for that law says what the student's own run will do with it."""
+    nb = load(MASTER)
+    cell = next(c for c in nb.cells if c.cell_type == "code" and "def pd_torque" in c.source)
+    aliased = cell.source.replace(
+        "q, qdot = data.qpos, data.qvel\n    return Kp * (q_d - q) - Kd * qdot",
+        "e = data.qpos\n    e -= q_d  # writes into data.qpos\n    return -Kp * e - Kd * data.qvel",
+    )
+    assert aliased != cell.source
+    cell.source = aliased
+    row = _graded(tmp_path, nb, BUDGET)
+    assert row["status"] == "graded" and row["scores"] == FULL, row
+    assert "Note: pd_torque changed data.qpos of the state the check handed it" in row["messages"]["p1_pd"]
+    assert "e = q_d - data.qpos" in row["messages"]["p1_pd"]
+    assert not any("Note:" in row["messages"][name] for name in row["messages"] if name != "p1_pd"), row["messages"]
+
+
 def test_a_notebook_of_the_older_format_is_read_like_a_current_one():
     """Jupyter still opens format 3 (worksheets of cells, code in ``input``); the grader reads it
     too, instead of calling it unreadable and scoring zero."""

@@ -36,6 +36,7 @@ from labsupport.grading.feedback import (
     Result,
     StudentError,
     as_vector,
+    noting_state_write,
     where_raised,
 )
 from labsupport.grading.stability import Trace, explain_divergence
@@ -73,7 +74,7 @@ def check(name: str, namespace: dict) -> Result | None:
     if name not in checks:
         raise ValueError(f"no check named {name!r}; the checks are {sorted(checks)}")
     probe = DirectProbe(namespace)
-    result = checks[name](probe, PUBLIC_SEED)
+    result = noting_state_write(checks[name](probe, PUBLIC_SEED), probe)
     print(result)
     note = cpu_note(probe.cpu_seconds)
     if note:

@@ -20,7 +20,7 @@ import re
 import sysconfig
 import time
 import traceback
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cache
 from typing import Any
 
@@ -29,6 +29,7 @@ import numpy as np
 from labsupport import validate
 from labsupport.dynamics import full_m_advice
 from labsupport.grading.rules import ForbiddenUse, call_watched, forbidden_message, is_forbidden_message
+from labsupport.sim import STATE_WRITE_ADVICE, state_changes
 
 PASS, PARTIAL, FAIL, NOT_IMPLEMENTED = "pass", "partial", "fail", "not implemented yet"
 
@@ -188,8 +189,30 @@ def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.nda
     return arr
 
 
+def fields_written(data, qpos_before, qvel_before) -> list[str]:
+    """:func:`labsupport.sim.state_changes` for a note only: ``[]`` where the comparison itself
+    fails (the student's process may have replaced NumPy's functions), so that looking for a
+    write can never cost an answer its points."""
+    try:
+        return [str(f) for f in state_changes(data, qpos_before, qvel_before)]
+    except Exception:
+        return []
+
+
 class Probe:
-    """How a check calls the student's code. Subclasses implement :meth:`call` and :meth:`get`."""
+    """How a check calls the student's code. Subclasses implement :meth:`call` and :meth:`get`.
+
+    Attributes:
+        state_write: the first call since it was last set to None that changed the state it was
+            handed, as ``(function name, ["data.qpos", ...])``, else None (see :func:`noting_state_write`).
+    """
+
+    state_write: tuple[str, list[str]] | None = None
+
+    def notice_state_write(self, fname: str, changed: list[str]) -> None:
+        """Record that a call of ``fname`` changed the ``changed`` fields of the state it was handed."""
+        if changed and self.state_write is None:
+            self.state_write = (fname, list(changed))
 
     def call(self, fname: str, *args, **kwargs):
         """Call the student's function ``fname``; returns its value (arrays as arrays) or raises StudentError."""
@@ -226,11 +249,17 @@ class DirectProbe(Probe):
     def _expand(self, args):
         """The arguments as the student's function gets them: a State as fresh (model, data), and
         every array or list a copy, so that a function that changes its arguments in place does
-        not change the check's own targets (as in the batch grader, which sends copies)."""
-        out = []
+        not change the check's own targets (as in the batch grader, which sends copies). Also
+        returns each State with the data made of it, to see whether the call changed it."""
+        out, handed = [], []
         for a in args:
-            out.extend(self._model_data(a) if isinstance(a, State) else (copy.deepcopy(a),))
-        return out
+            if isinstance(a, State):
+                model, data = self._model_data(a)
+                out.extend((model, data))
+                handed.append((a, data))
+            else:
+                out.append(copy.deepcopy(a))
+        return out, handed
 
     def _lookup(self, name: str):
         if name not in self.namespace:
@@ -242,7 +271,7 @@ class DirectProbe(Probe):
         if not callable(fn):
             raise StudentError(f"{fname} should be a function, but it is a {type(fn).__name__}")
 
-        expanded, kwargs = self._expand(args), copy.deepcopy(kwargs)
+        (expanded, handed), kwargs = self._expand(args), copy.deepcopy(kwargs)
 
         def call_and_read():  # read as numbers under the watch too: an __array__ runs code
             value = fn(*expanded, **kwargs)
@@ -265,10 +294,29 @@ class DirectProbe(Probe):
             self.cpu_seconds += time.process_time() - start
         if used is not None:
             raise ForbiddenCall(forbidden_message(used))
+        for state, data in handed:
+            self.notice_state_write(fname, fields_written(data, state.q, state.qdot))
         return value
 
     def get(self, name: str):
         return _plain(self._lookup(name), f"{name} is")
+
+
+def noting_state_write(result: Result, probe: Probe) -> Result:
+    """``result`` with a note where a call of the check changed the state it was handed
+    (:attr:`Probe.state_write`), its score unchanged. Every call of a check gets a copy of the
+    state, so such a write changes none of the check's numbers; but the notebook's own runs hand
+    the law the arm's data, and the loop stops at the first call that changes it
+    (:func:`labsupport.sim.state_written`)."""
+    if probe.state_write is None:
+        return result
+    fname, changed = probe.state_write
+    note = (
+        f" Note: {fname} changed {' and '.join(changed)} of the state the check handed it; {STATE_WRITE_ADVICE}. "
+        "No points are lost here, where each call gets its own copy of the state, but your own runs, which "
+        "hand the law the arm's data, stop at the first such call."
+    )
+    return replace(result, message=result.message + note)
 
 
 #: Why a law's matrix may be singular where the arm is not: a scratch ``MjData`` whose positions

@@ -52,6 +52,7 @@ from labsupport.grading.feedback import (
     StudentTimeout,
     complex_message,
     failed,
+    noting_state_write,
     raised_text,
 )
 from labsupport.instructor import isolation
@@ -390,7 +391,11 @@ class SandboxProbe(Probe):
             "cpu": self.budget.call,
             "idle": self.budget.idle,
         }
-        return _decode(fname, self._ask(payload, fname), call=True)
+        answer = self._ask(payload, fname)
+        changed = answer.get("state_written")
+        if isinstance(changed, list) and set(changed) <= {"data.qpos", "data.qvel"}:
+            self.notice_state_write(fname, changed)
+        return _decode(fname, answer, call=True)
 
     def get(self, name: str):
         return _decode(
@@ -667,6 +672,7 @@ def grade(
                 )
         for name in names:
             probe.check_cpu_left, probe.check_idle_left = budget.check, budget.check_idle
+            probe.state_write = None
             try:
                 if probe.start_problem is not None:  # the notebook itself never finished: nothing to check
                     raise StudentError(f"not graded: {probe.start_problem}")
@@ -677,6 +683,7 @@ def grade(
                 raise
             except Exception as err:  # a bug in a check must not lose the row
                 result = Result(name, 0.0, "error", f"the grader could not run this check: {type(err).__name__}: {err}")
+            result = noting_state_write(result, probe)
             scores[name] = round(result.score * points[name], 4)
             messages[name] = result.message
             statuses[name] = result.status

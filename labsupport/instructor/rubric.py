@@ -95,6 +95,8 @@ def rubric(spec: dict) -> str:
         f"- a function that {_BROKEN} "
         f"({budget.call:g} s of CPU per call, {budget.check:g} s over the check) scores 0 on that check, "
         "the others keep their points;",
+        "- a law that writes into the state it is handed (`e = data.qpos; e -= q_d`) is judged on its "
+        "result alone, since each call gets its own copy of the state, and the feedback says that it wrote;",
         "- the test states, targets and circles are drawn from the batch's secret seed.",
     ]
     for c in checks:

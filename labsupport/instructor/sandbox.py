@@ -212,7 +212,7 @@ def main() -> None:
     import numpy as np
     from IPython.core.interactiveshell import InteractiveShell
 
-    from labsupport.grading.feedback import where_raised
+    from labsupport.grading.feedback import fields_written, where_raised
     from labsupport.grading.rules import MARKER
     from labsupport.plants import load_model
 
@@ -226,8 +226,11 @@ def main() -> None:
     signal.signal(signal.SIGPROF, watch.on_cpu)
     signal.signal(signal.SIGALRM, watch.on_tick)
 
+    handed = []  # the state of the last call, to see whether the call changed it
+
     def expand(args):
         out = []
+        handed.clear()
         for a in args:
             if isinstance(a, dict) and "state" in a:
                 mujoco.mj_resetData(model, data)
@@ -236,6 +239,7 @@ def main() -> None:
                 data.time = a["state"]["t"]
                 mujoco.mj_forward(model, data)
                 out.extend((model, data))
+                handed.append((data.qpos.copy(), data.qvel.copy()))
             elif isinstance(a, list):
                 out.append(np.asarray(a, dtype=float))
             else:
@@ -303,6 +307,8 @@ def main() -> None:
                     value = ns[name](*expand(req.get("args", [])), **req.get("kwargs", {}))
                 payload = _encode(value)  # under the watch: reading the value may run its code
                 watch.disarm()
+                if op == "call" and handed and (changed := fields_written(data, *handed[0])):
+                    payload["state_written"] = changed
                 if "raised" in payload or "type" in payload:
                     payload = thread_errors.instead_of(payload)
             except CellTimeout:
