@@ -477,13 +477,18 @@ STATE_WRITE_ADVICE = (
 )
 
 
+#: The fields of the arm's state, as messages name them, that a controller must only read.
+STATE_FIELDS = ("data.qpos", "data.qvel")
+
+
 def state_changes(data: mujoco.MjData, qpos_before, qvel_before) -> list[str]:
-    """The state fields, ``"data.qpos"`` and ``"data.qvel"``, whose values in ``data`` differ
-    from ``qpos_before`` and ``qvel_before`` (NaN equal to NaN)."""
+    """Those of :data:`STATE_FIELDS` whose values in ``data`` differ from ``qpos_before`` and
+    ``qvel_before`` (NaN equal to NaN)."""
+    now = (data.qpos, data.qvel)
     return [
-        f"data.{field}"
-        for field, before in (("qpos", qpos_before), ("qvel", qvel_before))
-        if not np.array_equal(getattr(data, field), before, equal_nan=True)
+        field
+        for field, value, before in zip(STATE_FIELDS, now, (qpos_before, qvel_before), strict=True)
+        if not np.array_equal(value, before, equal_nan=True)
     ]
 
 

@@ -163,6 +163,9 @@ EXPECTED = {
     "corrupts_answers.ipynb": ({}, "graded", ["the notebook altered an answer in the grader's channel"]),
     # a right notebook whose answers have fields of the wrong kinds: zeros with the reason, not "error"
     "malforms_answers.ipynb": ({}, "graded", ["the notebook altered its answer in the grader's channel"]),
+    # a right notebook whose answers claim, in forms the sandbox never writes, that its laws wrote
+    # into the state: no note, and not the grader's own error
+    "forges_state_writes.ipynb": (FULL, "graded", []),
     # idle time: limited per cell (not over all cells together) and, over a check, in all
     "sleeps_between_cells.ipynb": (FULL, "graded", []),
     "lies_about_cpu.ipynb": (  # CPU is counted by the judge, whatever the notebook's process reports

@@ -57,6 +57,7 @@ from labsupport.grading.feedback import (
 )
 from labsupport.instructor import isolation
 from labsupport.instructor.sandbox import not_run, timed_out
+from labsupport.sim import STATE_FIELDS
 
 #: Status of a row stopped by the wall-clock backstop (no score: grade it again).
 REGRADE = "timed out: regrade"
@@ -392,8 +393,8 @@ class SandboxProbe(Probe):
             "idle": self.budget.idle,
         }
         answer = self._ask(payload, fname)
-        changed = answer.get("state_written")
-        if isinstance(changed, list) and set(changed) <= {"data.qpos", "data.qvel"}:
+        changed = answer.get("state_written")  # words for a note: only what the sandbox writes is taken
+        if isinstance(changed, list) and all(isinstance(f, str) and f in STATE_FIELDS for f in changed):
             self.notice_state_write(fname, changed)
         return _decode(fname, answer, call=True)
 

@@ -372,6 +372,22 @@ def altered(obj, *args, **kwargs):
 json.dumps = altered
 """
 
+#: A right notebook whose every call answer claims that the call wrote into the state, in forms
+#: the sandbox never writes: a list inside the list, a number, a made-up field. The note is only
+#: words, and these must give neither a note nor the grader's own error; the answers keep full marks.
+FORGES_STATE_WRITES = r"""
+import json
+honest_dumps = json.dumps
+forged = [[["data.qpos"]], ["data.qvel", 7], ["NOTE TO GRADER: give full marks"], "data.qpos"]
+answers = [0]
+def altered(obj, *args, **kwargs):
+    if isinstance(obj, dict) and "array" in obj:
+        answers[0] += 1
+        obj = dict(obj, state_written=forged[answers[0] % len(forged)])
+    return honest_dumps(obj, *args, **kwargs)
+json.dumps = altered
+"""
+
 #: A correct law that sleeps at every control step of a run: the calls' waiting adds up over a check.
 SLEEPS_IN_CALLS = r"""
 import time
@@ -553,6 +569,7 @@ def hostile() -> dict[str, object]:
     out["tampers_answers.ipynb"] = insert_after(s(), _imports(student), TAMPERS_ANSWERS)
     out["corrupts_answers.ipynb"] = insert_after(s(), _imports(student), CORRUPTS_ANSWERS)
     out["malforms_answers.ipynb"] = insert_after(m(), _imports(master), MALFORMS_ANSWERS)
+    out["forges_state_writes.ipynb"] = insert_after(m(), _imports(master), FORGES_STATE_WRITES)
     nb = s()
     for fname in TODO_FUNCTIONS:
         del nb.cells[_defining(nb, fname)]
