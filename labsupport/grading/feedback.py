@@ -194,7 +194,7 @@ def fields_written(data, qpos_before, qvel_before) -> list[str]:
     fails (the student's process may have replaced NumPy's functions), so that looking for a
     write can never cost an answer its points."""
     try:
-        return [str(f) for f in state_changes(data, qpos_before, qvel_before)]
+        return state_changes(data, qpos_before, qvel_before)
     except Exception:
         return []
 

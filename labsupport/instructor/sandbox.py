@@ -226,7 +226,7 @@ def main() -> None:
     signal.signal(signal.SIGPROF, watch.on_cpu)
     signal.signal(signal.SIGALRM, watch.on_tick)
 
-    handed = []  # the state of the last call, to see whether the call changed it
+    handed = []  # the state handed to the last call, as set (all states share one data), to see it changed
 
     def expand(args):
         out = []
@@ -239,7 +239,7 @@ def main() -> None:
                 data.time = a["state"]["t"]
                 mujoco.mj_forward(model, data)
                 out.extend((model, data))
-                handed.append((data.qpos.copy(), data.qvel.copy()))
+                handed[:] = [(data.qpos.copy(), data.qvel.copy())]
             elif isinstance(a, list):
                 out.append(np.asarray(a, dtype=float))
             else:
