@@ -731,6 +731,12 @@ def test_a_law_that_writes_into_the_state_it_is_handed_keeps_its_points_and_is_t
     assert "Note: pd_torque changed data.qpos of the state the check handed it" in row["messages"]["p1_pd"]
     assert "e = q_d - data.qpos" in row["messages"]["p1_pd"]
     assert not any("Note:" in row["messages"][name] for name in row["messages"] if name != "p1_pd"), row["messages"]
+    # the grades table's reason says it too (it said "all checks passed"), and the feedback file
+    # says it once, under the law's check
+    reason = _grades(tmp_path / "out")["submission.ipynb"]["reason"]
+    assert reason == "p1_pd: passed, but pd_torque changed data.qpos of the state it was handed", reason
+    feedback = (tmp_path / "out" / "feedback" / "submission.txt").read_text(encoding="utf-8")
+    assert feedback.count("pd_torque changed data.qpos") == 1, feedback
 
 
 def test_a_notebook_of_the_older_format_is_read_like_a_current_one():

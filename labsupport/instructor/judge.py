@@ -650,7 +650,7 @@ def grade(
     notes: list[str] = []
     if note := run_time_code_note(cells):
         notes.append(note)
-    scores, messages, statuses = {}, {}, {}
+    scores, messages, statuses, wrote_state = {}, {}, {}, {}
     try:
         try:
             probe.start()
@@ -685,6 +685,8 @@ def grade(
             except Exception as err:  # a bug in a check must not lose the row
                 result = Result(name, 0.0, "error", f"the grader could not run this check: {type(err).__name__}: {err}")
             result = noting_state_write(result, probe)
+            if probe.state_write is not None:
+                wrote_state[name] = probe.state_write
             scores[name] = round(result.score * points[name], 4)
             messages[name] = result.message
             statuses[name] = result.status
@@ -715,6 +717,9 @@ def grade(
             notes.append(f"{name}: not implemented yet")
         elif statuses[name] != PASS and probe.start_problem is None:
             notes.append(f"{name}: {messages[name]}")
+        elif name in wrote_state:  # a passed check's note, in the grades table's reason too
+            fname, changed = wrote_state[name]
+            notes.append(f"{name}: passed, but {fname} changed {' and '.join(changed)} of the state it was handed")
     return {  # a check the grader itself could not run leaves the row unrecorded (grade it again or by hand)
         "status": "error" if "error" in statuses.values() else "graded",
         "scores": scores,
