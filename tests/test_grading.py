@@ -739,6 +739,23 @@ def test_a_law_that_writes_into_the_state_it_is_handed_keeps_its_points_and_is_t
     assert feedback.count("pd_torque changed data.qpos") == 1, feedback
 
 
+def test_a_notebook_from_colab_with_its_magics_and_colab_modules_is_graded_as_it_ran(tmp_path):
+    """``%matplotlib inline`` raised in the sandbox's plain IPython shell (it has no GUI loop),
+    and Colab's own ``google.colab`` was missing there: put at the top of the imports cell,
+    either one stopped that cell, and a right notebook scored 2 of 10. Both now run as in Colab."""
+    nb = load(MASTER)
+    cell = next(c for c in nb.cells if c.cell_type == "code" and "import mujoco" in c.source)
+    cell.source = (
+        "%matplotlib inline\n"
+        "from google.colab import drive, files\n"
+        "from google.colab.patches import cv2_imshow\n"
+        "drive.mount('/content/drive')\n" + cell.source + "\n%matplotlib widget\nfiles.download('run.mp4')\n"
+    )
+    row = _graded(tmp_path, nb, BUDGET)
+    assert row["status"] == "graded" and row["scores"] == FULL, row
+    assert row["notes"] == [], row["notes"]
+
+
 def test_a_notebook_of_the_older_format_is_read_like_a_current_one():
     """Jupyter still opens format 3 (worksheets of cells, code in ``input``); the grader reads it
     too, instead of calling it unreadable and scoring zero."""

@@ -32,12 +32,15 @@ nothing the student returns is ever unpickled by the grader.
 from __future__ import annotations
 
 import hashlib
+import importlib.abc
+import importlib.machinery
 import json
 import os
 import signal
 import sys
 import threading
 import time
+import types
 
 #: Largest array the sandbox sends back.
 MAX_ELEMENTS = 10_000
@@ -195,6 +198,50 @@ def _listing(folders) -> dict[str, str]:
     return out
 
 
+class Nothing:
+    """A stand-in for anything: each of its attributes, and what a call of it returns, is itself."""
+
+    def __call__(self, *args, **kwargs):
+        return self
+
+    def __getattr__(self, name: str):
+        if name.startswith("__"):
+            raise AttributeError(name)
+        return self
+
+
+class StandInModule(types.ModuleType):
+    """A module whose every attribute is :class:`Nothing`."""
+
+    def __getattr__(self, name: str):
+        if name.startswith("__"):
+            raise AttributeError(name)
+        return Nothing()
+
+
+class ColabStandIn(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """Google Colab's own modules, which the sandbox does not have: ``google.colab`` and every
+    module under it import as a :class:`StandInModule`. A notebook from Colab that mounts its
+    Drive, downloads a file or turns on a widget manager runs on, where the import raised and the
+    rest of its cell (often the imports) never ran. Found last on :data:`sys.meta_path`, so a
+    real ``google`` or ``google.colab`` is used where there is one."""
+
+    PACKAGE = "google.colab"
+
+    def find_spec(self, fullname, path=None, target=None):
+        if fullname in ("google", self.PACKAGE) or fullname.startswith(self.PACKAGE + "."):
+            return importlib.machinery.ModuleSpec(fullname, self, is_package=True)
+        return None
+
+    def create_module(self, spec):
+        module = StandInModule(spec.name)
+        module.__path__ = []
+        return module
+
+    def exec_module(self, module):
+        pass
+
+
 def main() -> None:
     # keep the pipes to the judge private; whatever the notebook prints goes nowhere
     rpc_in = os.fdopen(os.dup(0), "r", encoding="utf-8")
@@ -220,6 +267,12 @@ def main() -> None:
     model, _ = load_model("spatial_3r")
     data = mujoco.MjData(model)
     shell = InteractiveShell.instance()
+    # A plotting backend is the notebook's display, which is never graded: %matplotlib (inline,
+    # widget, any other) and %pylab keep the sandbox's Agg. A plain IPython shell has no GUI loop
+    # and raised at `%matplotlib inline`, so the rest of its cell (often the imports) never ran.
+    shell.enable_gui = lambda gui=None: None
+    shell.enable_matplotlib = lambda gui=None: (gui, "agg")
+    sys.meta_path.append(ColabStandIn())
     watch = Watch()
     thread_errors = ThreadErrors(MARKER)
     threading.excepthook = thread_errors.hook
