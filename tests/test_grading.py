@@ -17,7 +17,7 @@ from pathlib import Path
 
 import nbformat
 import pytest
-from hostile.build import MASTER, _imports, insert_after, load, unusual_problem2
+from hostile.build import MASTER, _imports, from_colab, insert_after, load, unusual_problem2
 from nbclient import NotebookClient
 
 from labsupport.grading import PUBLIC_SEED
@@ -150,6 +150,8 @@ EXPECTED = {
     "hides_its_code.ipynb": (FULL, "graded", ["run code built while the notebook runs"]),
     # right answers written unusually (SciPy's least squares for the IK, np.matrix gains, MuJoCo's mj_mulM)
     "unusual_but_right.ipynb": (FULL, "graded", ["all checks passed"]),
+    # the master as saved from Colab: %matplotlib magics and google.colab imports atop its imports
+    "from_colab.ipynb": (FULL, "graded", ["all checks passed"]),
     # attacks on the grader, from notebooks that implement nothing: any point is a successful attack
     "escapes.ipynb": ({}, "graded", NOTHING),
     "writes_everywhere.ipynb": ({}, "graded", ['wrote files: "/home/student/junk.txt"']),
@@ -742,16 +744,9 @@ def test_a_law_that_writes_into_the_state_it_is_handed_keeps_its_points_and_is_t
 def test_a_notebook_from_colab_with_its_magics_and_colab_modules_is_graded_as_it_ran(tmp_path):
     """``%matplotlib inline`` raised in the sandbox's plain IPython shell (it has no GUI loop),
     and Colab's own ``google.colab`` was missing there: put at the top of the imports cell,
-    either one stopped that cell, and a right notebook scored 2 of 10. Both now run as in Colab."""
-    nb = load(MASTER)
-    cell = next(c for c in nb.cells if c.cell_type == "code" and "import mujoco" in c.source)
-    cell.source = (
-        "%matplotlib inline\n"
-        "from google.colab import drive, files\n"
-        "from google.colab.patches import cv2_imshow\n"
-        "drive.mount('/content/drive')\n" + cell.source + "\n%matplotlib widget\nfiles.download('run.mp4')\n"
-    )
-    row = _graded(tmp_path, nb, BUDGET)
+    either one stopped that cell, and a right notebook scored 2 of 10. Both now run as in Colab
+    (``hostile/build.py``'s ``from_colab``)."""
+    row = _graded(tmp_path, from_colab(load(MASTER)), BUDGET)
     assert row["status"] == "graded" and row["scores"] == FULL, row
     assert row["notes"] == [], row["notes"]
 

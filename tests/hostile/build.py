@@ -71,6 +71,21 @@ def load(path: Path):
     return nbformat.read(str(path), as_version=4)
 
 
+def from_colab(nb):
+    """``nb`` as a student may save it from Colab: its imports cell opens with ``%matplotlib
+    inline`` and Colab's own modules (a Drive mounted), and ends with another backend and a
+    download. Right answers there keep full marks."""
+    cell = nb.cells[_imports(nb)]
+    cell.source = (
+        "%matplotlib inline\n"
+        "from google.colab import drive, files\n"
+        "from google.colab.patches import cv2_imshow\n"
+        "drive.mount('/content/drive')\n" + cell.source + "\n%matplotlib widget\nfiles.download('run.mp4')\n"
+    )
+    nb.metadata["colab"] = {"provenance": []}
+    return nb
+
+
 # --- attacks on the grader, each on a notebook that implements nothing -----------------------
 
 #: Overwrite every grades.csv, every check module and every notebook it can reach.
@@ -534,6 +549,7 @@ def hostile() -> dict[str, object]:
     nb = replace_function(m(), "ik_3r", UNUSUAL_IK)
     nb = replace_function(nb, "pd_torque", UNUSUAL_PD)
     out["unusual_but_right.ipynb"] = replace_function(nb, "ct_joint_torque", UNUSUAL_CT)
+    out["from_colab.ipynb"] = from_colab(m())
     nb = m()
     imports = nb.cells.pop(_imports(nb))
     nb.cells.insert(_defining(nb, "ik_3r") + 1, imports)
