@@ -751,6 +751,19 @@ def test_a_notebook_from_colab_with_its_magics_and_colab_modules_is_graded_as_it
     assert row["notes"] == [], row["notes"]
 
 
+def test_a_module_the_grader_lacks_gets_a_note_that_says_what_to_do(tmp_path):
+    """Colab preinstalls many packages the grader does not have. A cell importing one stops there,
+    as it would anywhere without it, and its note now says how to grade it again; a module of
+    labsupport that the sandbox leaves out on purpose gets no such advice."""
+    nb = insert_after(load(MASTER), _imports(load(MASTER)), "import a_package_only_colab_has")
+    nb = insert_after(nb, _imports(nb) + 1, "import labsupport.solutions")
+    row = _graded(tmp_path, nb, BUDGET)
+    assert row["status"] == "graded" and row["scores"] == FULL, row
+    missing, ours = row["notes"]
+    assert "No module named 'a_package_only_colab_has'" in missing and judge.MISSING_MODULE_ADVICE in missing
+    assert "No module named 'labsupport.solutions'" in ours and judge.MISSING_MODULE_ADVICE not in ours
+
+
 def test_a_notebook_of_the_older_format_is_read_like_a_current_one():
     """Jupyter still opens format 3 (worksheets of cells, code in ``input``); the grader reads it
     too, instead of calling it unreadable and scoring zero."""

@@ -600,7 +600,22 @@ def _error_note(text: str) -> str:
     if match is None:
         return f"reported an error in a form the sandbox never writes: {json.dumps(text[:200], ensure_ascii=False)}"
     name, message = match.groups()
-    return f"raised {name}" + ("" if message is None else f": {json.dumps(message, ensure_ascii=False)}")
+    note = f"raised {name}" + ("" if message is None else f": {json.dumps(message, ensure_ascii=False)}")
+    missing = _MISSING_MODULE.fullmatch(message or "") if name == "ModuleNotFoundError" else None
+    if missing and missing.group(1).split(".")[0] != "labsupport":
+        note += f" ({MISSING_MODULE_ADVICE})"
+    return note
+
+
+#: ModuleNotFoundError's message, and the module it names.
+_MISSING_MODULE = re.compile(r"No module named '([A-Za-z0-9_.]+)'")
+#: What the notes add where a cell imported a module the grader's Python lacks (not one of
+#: labsupport's, which the sandbox leaves out on purpose), for the instructor and the student
+#: alike: the feedback file shows the notes too.
+MISSING_MODULE_ADVICE = (
+    "the grader's Python does not have this module, so the rest of that cell did not run; where the "
+    "course allows the module (Colab preinstalls many), the grader can install it and grade the notebook again"
+)
 
 
 def _paths(entries: list) -> list[str]:
