@@ -273,6 +273,7 @@ def main() -> None:
     shell.enable_gui = lambda gui=None: None
     shell.enable_matplotlib = lambda gui=None: (gui, "agg")
     sys.meta_path.append(ColabStandIn())
+    shell.magics_manager.register_alias("shell", "sh", "cell")  # Colab's %%shell: IPython's %%sh
     watch = Watch()
     thread_errors = ThreadErrors(MARKER)
     threading.excepthook = thread_errors.hook

@@ -74,8 +74,10 @@ def load(path: Path):
 def from_colab(nb):
     """``nb`` as a student may save it from Colab: its imports cell opens with ``%matplotlib
     inline`` and Colab's own modules (a Drive mounted), and ends with another backend and a
-    download. Right answers there keep full marks."""
-    cell = nb.cells[_imports(nb)]
+    download; a ``%%shell`` cell (Colab's own magic) follows it. Right answers there keep full
+    marks."""
+    k = _imports(nb)
+    cell = nb.cells[k]
     cell.source = (
         "%matplotlib inline\n"
         "from google.colab import drive, files\n"
@@ -83,7 +85,7 @@ def from_colab(nb):
         "drive.mount('/content/drive')\n" + cell.source + "\n%matplotlib widget\nfiles.download('run.mp4')\n"
     )
     nb.metadata["colab"] = {"provenance": []}
-    return nb
+    return insert_after(nb, k, "%%shell\necho the cells run on\n")
 
 
 # --- attacks on the grader, each on a notebook that implements nothing -----------------------
