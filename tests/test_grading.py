@@ -17,7 +17,7 @@ from pathlib import Path
 
 import nbformat
 import pytest
-from hostile.build import MASTER, _imports, from_colab, insert_after, load, unusual_problem2
+from hostile.build import MASTER, _defining, _imports, from_colab, insert_after, load, unusual_problem2
 from nbclient import NotebookClient
 
 from labsupport.grading import PUBLIC_SEED
@@ -749,6 +749,19 @@ def test_a_notebook_from_colab_with_its_magics_and_colab_modules_is_graded_as_it
     row = _graded(tmp_path, from_colab(load(MASTER)), BUDGET)
     assert row["status"] == "graded" and row["scores"] == FULL, row
     assert row["notes"] == [], row["notes"]
+
+
+def test_a_law_written_to_a_module_by_the_notebook_imports_as_in_jupyter(tmp_path):
+    """A kernel puts the notebook's folder first on the path; the sandbox did not, so a right PD
+    written with ``%%writefile my_pd.py`` and imported from it scored zero (ModuleNotFoundError)."""
+    nb = load(MASTER)
+    k = _defining(nb, "pd_torque")
+    nb.cells[k].source = "%%writefile my_pd.py\nimport numpy as np\n\n" + nb.cells[k].source
+    nb = insert_after(nb, k, "from my_pd import pd_torque")
+    row = _graded(tmp_path, nb, BUDGET)
+    assert row["status"] == "graded" and row["scores"] == FULL, row
+    wrote = 'the notebook wrote files: "/home/student/my_pd.py" (in its private scratch space; ignored)'
+    assert row["notes"] == [wrote], row["notes"]
 
 
 def test_a_module_the_grader_lacks_gets_a_note_that_says_what_to_do(tmp_path):

@@ -274,6 +274,9 @@ def main() -> None:
     shell.enable_matplotlib = lambda gui=None: (gui, "agg")
     sys.meta_path.append(ColabStandIn())
     shell.magics_manager.register_alias("shell", "sh", "cell")  # Colab's %%shell: IPython's %%sh
+    # The notebook's own folder comes first on the path, as in a Jupyter kernel: a module that a
+    # cell writes there (%%writefile my_law.py) imports, where it raised ModuleNotFoundError.
+    sys.path.insert(0, "")
     watch = Watch()
     thread_errors = ThreadErrors(MARKER)
     threading.excepthook = thread_errors.hook
