@@ -725,7 +725,7 @@ def grade(
             notes.append(
                 f"the notebook {label} files: {', '.join(paths[:5])}"
                 + (" ..." if len(paths) > 5 else "")
-                + " (in its private scratch space; ignored)"
+                + " (in its private scratch space, removed after grading)"
             )
     for name in names:
         if statuses[name] == NOT_IMPLEMENTED:
