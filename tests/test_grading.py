@@ -17,7 +17,7 @@ from pathlib import Path
 
 import nbformat
 import pytest
-from hostile.build import MASTER, _defining, _imports, from_colab, insert_after, load, unusual_problem2
+from hostile.build import MASTER, _defining, _imports, insert_after, load, unusual_problem2
 from nbclient import NotebookClient
 
 from labsupport.grading import PUBLIC_SEED
@@ -150,7 +150,9 @@ EXPECTED = {
     "hides_its_code.ipynb": (FULL, "graded", ["run code built while the notebook runs"]),
     # right answers written unusually (SciPy's least squares for the IK, np.matrix gains, MuJoCo's mj_mulM)
     "unusual_but_right.ipynb": (FULL, "graded", ["all checks passed"]),
-    # the master as saved from Colab: %matplotlib magics and google.colab imports atop its imports
+    # the master as saved from Colab (hostile/build.py's from_colab): %matplotlib magics and
+    # google.colab imports atop its imports, a %%shell cell; the first two raised in the sandbox's
+    # plain IPython shell and stopped the imports cell (2 of 10), the last raised UsageError
     "from_colab.ipynb": (FULL, "graded", ["all checks passed"]),
     # attacks on the grader, from notebooks that implement nothing: any point is a successful attack
     "escapes.ipynb": ({}, "graded", NOTHING),
@@ -742,16 +744,6 @@ def test_a_law_that_writes_into_the_state_it_is_handed_keeps_its_points_and_is_t
     assert reason == "p1_pd: passed, but pd_torque changed data.qpos of the state it was handed", reason
     feedback = (tmp_path / "out" / "feedback" / "submission.txt").read_text(encoding="utf-8")
     assert feedback.count("pd_torque changed data.qpos") == 1, feedback
-
-
-def test_a_notebook_from_colab_with_its_magics_and_colab_modules_is_graded_as_it_ran(tmp_path):
-    """``%matplotlib inline`` raised in the sandbox's plain IPython shell (it has no GUI loop),
-    and Colab's own ``google.colab`` was missing there: put at the top of the imports cell,
-    either one stopped that cell, and a right notebook scored 2 of 10. Both now run as in Colab
-    (``hostile/build.py``'s ``from_colab``)."""
-    row = _graded(tmp_path, from_colab(load(MASTER)), BUDGET)
-    assert row["status"] == "graded" and row["scores"] == FULL, row
-    assert row["notes"] == [], row["notes"]
 
 
 def test_a_law_written_to_a_module_by_the_notebook_imports_as_in_jupyter(tmp_path):

@@ -210,21 +210,15 @@ class Nothing:
         return self
 
 
-class StandInModule(types.ModuleType):
-    """A module whose every attribute is :class:`Nothing`."""
-
-    def __getattr__(self, name: str):
-        if name.startswith("__"):
-            raise AttributeError(name)
-        return Nothing()
+NOTHING = Nothing()
 
 
 class ColabStandIn(importlib.abc.MetaPathFinder, importlib.abc.Loader):
     """Google Colab's own modules, which the sandbox does not have: ``google.colab`` and every
-    module under it import as a :class:`StandInModule`. A notebook from Colab that mounts its
-    Drive, downloads a file or turns on a widget manager runs on, where the import raised and the
-    rest of its cell (often the imports) never ran. Found last on :data:`sys.meta_path`, so a
-    real ``google`` or ``google.colab`` is used where there is one."""
+    module under it import as a module whose every attribute is :data:`NOTHING`. A notebook from
+    Colab that mounts its Drive, downloads a file or turns on a widget manager runs on, where the
+    import raised and the rest of its cell (often the imports) never ran. Found last on
+    :data:`sys.meta_path`, so a real ``google`` or ``google.colab`` is used where there is one."""
 
     PACKAGE = "google.colab"
 
@@ -234,7 +228,8 @@ class ColabStandIn(importlib.abc.MetaPathFinder, importlib.abc.Loader):
         return None
 
     def create_module(self, spec):
-        module = StandInModule(spec.name)
+        module = types.ModuleType(spec.name)
+        module.__getattr__ = NOTHING.__getattr__  # a module's own __getattr__ (PEP 562)
         module.__path__ = []
         return module
 
