@@ -60,6 +60,18 @@ def test_site_and_fk_agree(arm_model):
         np.testing.assert_allclose(data.site("end_effector").xpos[:2], k2.forward_kinematics(q), atol=1e-12)
 
 
+def test_elbow_is_mujocos_joint_two_and_one_upper_arm_from_the_base(arm_model):
+    """The elbow that the arm drawings use, against where MuJoCo puts link 2's body."""
+    model, data = arm_model
+    rng = np.random.default_rng(2)
+    for q in rng.uniform(-np.pi, np.pi, size=(20, 2)):
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        elbow = k2.elbow_position(q)
+        np.testing.assert_allclose(elbow, data.xpos[2, :2], atol=1e-12)
+        np.testing.assert_allclose(np.linalg.norm(k2.forward_kinematics(q) - elbow), L2, atol=1e-12)
+
+
 def test_jacobian_matches_finite_differences():
     rng = np.random.default_rng(2)
     eps = 1e-6
@@ -142,8 +154,9 @@ def test_bad_arguments():
         k2.inverse_kinematics([0.5, 0.2], branch="left")
     with pytest.raises(ValueError, match="2 components"):
         k2.forward_kinematics([0.1, 0.2, 0.3])
-    with pytest.raises(ValueError, match="l2"):
-        k2.Planar2R(0.5, -0.4)
+    for length in (-0.4, 0.0):  # a link of no length is no link
+        with pytest.raises(ValueError, match="l2 .a link length. must be a positive number"):
+            k2.Planar2R(0.5, length)
     # a NaN target used to come back as NaN angles, silently
     with pytest.raises(ValueError, match="x has entries that are not finite"):
         k2.inverse_kinematics([np.nan, 0.2])
@@ -179,10 +192,30 @@ def test_a_path_that_touches_the_workspace_edge_is_refused_as_singular():
     assert k2.is_reachable(edge.pos) and k2.inverse_kinematics(edge.pos)[1] < 1e-7
     with pytest.raises(ValueError, match="singular configuration"):
         k2.joint_reference(edge)
+    # the same touch 40 degrees round, where no entry of J vanishes, and a circle that passes just
+    # inside, where |det J| = l1 l2 |sin q2| = 0.2 sin(0.01) = 2e-3 is far from the bound
+    turn, t_turn = np.array([np.cos(0.7), np.sin(0.7)]), 0.7 / (2 * np.pi)  # one turn a second
+    with pytest.raises(ValueError, match="singular configuration"):
+        k2.joint_reference(circle_2d(t_turn, 0.6 * turn, 0.3, 1.0))
+    reach = np.sqrt(0.5**2 + 0.4**2 + 2 * 0.5 * 0.4 * np.cos(0.01))
+    near = k2.joint_reference(circle_2d(t_turn, (reach - 0.3) * turn, 0.3, 1.0))
+    np.testing.assert_allclose(abs(near.pos[1]), 0.01, rtol=1e-9)
     inside = circle_2d(0.0, (0.5, 0.2), 0.15, 6.0)
     for bad in (0.0, -1.0, np.nan, None, "x"):
         with pytest.raises(ValueError, match="min_det must be"):
             k2.joint_reference(inside, min_det=bad)
+
+
+def test_the_ik_of_a_point_rounded_just_past_the_outer_edge_is_the_stretched_arm():
+    """On 287 of these 2000 points of the 0.9 m circle, cos q2 comes out 1 + 2e-16 or more: within
+    the rounding tolerance, so the point counts as reachable, and the IK must not take arccos of it."""
+    a = np.linspace(0.0, 2 * np.pi, 2000)
+    edge = 0.9 * np.stack([np.cos(a), np.sin(a)], axis=1)
+    assert (k2.elbow_cosine(edge) > 1).sum() > 100
+    for branch in k2.BRANCHES:
+        q = k2.inverse_kinematics(edge, branch=branch)
+        np.testing.assert_allclose(q[:, 1], 0.0, atol=1e-7)
+        np.testing.assert_allclose(k2.forward_kinematics(q), edge, atol=1e-12)
 
 
 def test_annulus_sample_is_seeded_and_reachable():
@@ -200,6 +233,10 @@ def test_the_annulus_sampler_refuses_a_margin_that_is_not_a_distance():
     for margin, message in ((-0.05, "margin must be non-negative"), (None, "margin must be finite")):
         with pytest.raises(ValueError, match=message):
             k2.sample_annulus(0, margin=margin)
+    arm = k2.Planar2R(0.5, 0.25)  # annulus [0.25, 0.75] m: a margin of 0.25 m leaves one radius, 0.5 m
+    with pytest.raises(ValueError, match="leaves no room in the workspace annulus"):
+        k2.sample_annulus(0, arm, margin=0.25)
+    assert 0.25 + 0.249 <= np.linalg.norm(k2.sample_annulus(0, arm, margin=0.249)) <= 0.75 - 0.249
 
 
 def test_a_whole_reference_where_positions_belong_is_named():
