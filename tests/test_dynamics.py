@@ -179,7 +179,10 @@ def test_task_space_inertia_names_a_singular_jacobian(arm):
     J = dynamics.site_jacobian(model, data, "tip")  # all six rows, for three joints: rank 3
     with pytest.raises(ValueError, match="J has lost rank.*Λ does not exist here.*damping > 0"):
         dynamics.task_space_inertia(model, data, J)
-    assert np.all(np.isfinite(dynamics.task_space_inertia(model, data, J, damping=1e-3)))
+    # damped, Λ is the inverse of J M⁻¹ Jᵀ + λ I, here computed with NumPy's inverse of the dense M
+    M = dynamics.mass_matrix(model, data)
+    expected = np.linalg.inv(J @ np.linalg.inv(M) @ J.T + 1e-3 * np.eye(6))
+    np.testing.assert_allclose(dynamics.task_space_inertia(model, data, J, damping=1e-3), expected, rtol=1e-9)
 
 
 @pytest.mark.parametrize("q2", [1e-10, 1e-12, np.pi - 1e-9])
@@ -422,6 +425,13 @@ def test_the_oldest_mujoco_is_the_one_pyproject_admits():
     assert bound, "pyproject.toml must admit MuJoCo as 'mujoco>=X.Y.Z,<N'"
     assert tuple(int(p) for p in bound.group(1).split(".")) == dynamics.OLDEST_MUJOCO
     assert dynamics._version(mujoco.__version__) >= dynamics.OLDEST_MUJOCO
+    for text, parsed in (
+        ("3.5.0", (3, 5, 0)),
+        ("4.0.dev0", (4, 0, 0)),
+        ("3.5.0rc1", (3, 5, 0)),
+        ("4.1.2.3", (4, 1, 2)),
+    ):
+        assert dynamics._version(text) == parsed
 
 
 def test_a_too_old_mujoco_is_refused_with_what_to_do():

@@ -422,6 +422,35 @@ def test_gains_reject_bad_input():
     np.testing.assert_allclose(PoseGains(4.0, 9.0).kd, [4, 4, 4, 6, 6, 6])
 
 
+def test_the_lab_gains_are_the_labs_and_the_defaults():
+    """Task 4's gains: Kp = 100 on position and 50 on orientation, each critically damped."""
+    np.testing.assert_array_equal(LAB_GAINS.kp, [100, 100, 100, 50, 50, 50])
+    np.testing.assert_allclose(LAB_GAINS.kd, [20, 20, 20, *[2 * np.sqrt(50)] * 3], rtol=1e-15)
+    assert PoseGains() == LAB_GAINS
+
+
+def test_leaving_jdot_qdot_out_changes_the_torque_by_exactly_its_term(ur):
+    """τ(jdot=True) − τ(jdot=False) = −(M + Δt Kv) J⁻¹ J̇q̇, with M, J and J̇q̇ from MuJoCo and NumPy's solve."""
+    model, _ = ur
+    data = mujoco.MjData(model)
+    site, arrays = model.site(ur5e.SITE).id, PoseArrays.for_model(model)
+    dt_kv = implicit_damping(Servo.from_model(model), model.opt.timestep)
+    rng = np.random.default_rng(9)
+    data.qpos[:] = model.key(ur5e.HOME).qpos + rng.uniform(-0.3, 0.3, model.nq)
+    data.qvel[:] = rng.uniform(-1.0, 1.0, model.nv)
+    mujoco.mj_forward(model, data)
+    x_d, quat_d = data.site_xpos[site] + 0.01, np.array([1.0, 0.0, 0.0, 0.0])
+    torques = [
+        tracking_torque(model, data, site, x_d, np.zeros(3), np.zeros(3), quat_d, LAB_GAINS, dt_kv, arrays, jdot).copy()
+        for jdot in (True, False)
+    ]
+    term = -(mass_matrix(model, data) + np.diag(dt_kv)) @ np.linalg.solve(
+        site_jacobian(model, data, site), site_jdot_qdot(model, data, site)
+    )
+    assert np.linalg.norm(term) > 0.1  # large enough to tell apart
+    np.testing.assert_allclose(torques[0] - torques[1], term, rtol=1e-7, atol=1e-9)
+
+
 # ---------------------------------------------------------------------------------------
 # Closed loop
 # ---------------------------------------------------------------------------------------
