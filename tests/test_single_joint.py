@@ -306,6 +306,17 @@ def test_bad_gain_design_inputs():
         gains.actuator_limited_gains(0.5, 0.1, -1.0, 1.0)
     with pytest.raises(ValueError, match="Kd must be finite"):
         gains.second_order(0.5, 0.1, 10.0, float("nan"))
+    for beyond in (100.0, 150.0):  # 100 % overshoot is no damping at all; more is none that exists
+        with pytest.raises(ValueError, match=r"percent_overshoot must be in \(0, 100\)"):
+            gains.damping_for_overshoot(beyond)
+
+
+def test_pd_gains_at_the_edges_of_what_friction_allows():
+    """Kd = 2ζωn M − b: zero where friction alone gives the damping asked for, small but positive
+    just above it."""
+    assert gains.pd_gains(0.5, 0.0, wn=10.0, zeta=0.0) == gains.Gains(Kp=50.0, Kd=0.0)
+    assert gains.pd_gains(0.5, 0.1, wn=1.0, zeta=0.1) == gains.Gains(Kp=0.5, Kd=0.0)
+    assert gains.pd_gains(0.5, 0.1, wn=1.0, zeta=0.5) == pytest.approx(gains.Gains(Kp=0.5, Kd=0.4), abs=1e-15)
 
 
 def test_simulate_returns_the_one_log_type():

@@ -91,6 +91,22 @@ def test_a_sampled_reference_called_at_a_time_that_is_not_one_says_so():
     np.testing.assert_allclose(ref(np.array([0.0, 0.5])).pos, sinusoid(np.array([0.0, 0.5])).pos)
 
 
+def test_the_circle_basis_is_the_labs():
+    """u = n × e_z / |n × e_z|, or n × e_x for a nearly vertical normal, and v = n × u: Problem 2's
+    horizontal circle (normal z) starts along u = (0, 1, 0) and turns towards v = (-1, 0, 0)."""
+    for normal, u, v in (
+        ((0, 0, 1), (0, 1, 0), (-1, 0, 0)),
+        ((0, 0, -2), (0, -1, 0), (-1, 0, 0)),
+        ((1, 0, 0), (0, -1, 0), (0, 0, -1)),
+        ((0, 0.3, 1), (0, 1, -0.3), (-1.09, 0, 0)),  # |n_z| > 0.9 |n|: still the e_x rule
+    ):
+        n = np.array(normal, float) / np.linalg.norm(normal)
+        got_u, got_v = tr.circle_basis(normal)
+        np.testing.assert_allclose(got_u, np.array(u) / np.linalg.norm(u), atol=1e-15)
+        np.testing.assert_allclose(got_v, np.cross(n, got_u), atol=1e-15)
+        np.testing.assert_allclose(np.sign(got_v), np.sign(v))
+
+
 def test_a_normal_of_any_size_gives_the_same_plane():
     """A normal of 1e200 entries overflowed its norm and gave NaN; one of 1e-320 vanished."""
     u, v = tr.circle_basis([1.0, 1.0, 0.0])
