@@ -78,6 +78,10 @@ def test_a_sampled_reference_rounds_alike_both_ways_and_refuses_times_before_its
     for t in (-0.14, 1.2, float("nan")):
         with pytest.raises(ValueError):
             ref.at(t)
+    with pytest.raises(ValueError, match="some times are outside the sampled reference"):
+        ref(np.array([1.0, 1.2]))  # row 12: one past the last
+    still = tr.sample(lambda t: tr.Reference(t, 0 * t, 0 * t), dt, 0.0)  # no duration: t = 0 and one step
+    np.testing.assert_allclose(still.pos, [0.0, dt])
 
 
 def test_a_sampled_reference_called_at_a_time_that_is_not_one_says_so():

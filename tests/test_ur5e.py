@@ -540,6 +540,17 @@ def test_within_reach_keeps_inner_points_and_differentiates_the_outer_path():
     np.testing.assert_allclose(pulled.pos[~inside], [[1.0, 0.0, 0.0]] * (~inside).sum())
     np.testing.assert_allclose(pulled.vel[10:400, 0], 1.0)  # the line's speed, where it is kept
     np.testing.assert_allclose(pulled.vel[600:, 0], 0.0, atol=1e-12)  # held on the sphere: at rest
+    # within two samples of the first pulled-back point (501, at 1.002 m), and only there, the
+    # rates are the path's own finite differences; farther in, the line's exact ones
+    first = int(np.argmax(~inside))
+    assert first == 501
+    grid_vel = np.gradient(pulled.pos, dt, axis=0, edge_order=2)
+    grid_acc = np.gradient(grid_vel, dt, axis=0, edge_order=2)
+    np.testing.assert_allclose(pulled.vel[first - 2 :], grid_vel[first - 2 :], atol=1e-9)
+    np.testing.assert_allclose(pulled.acc[first - 2 :], grid_acc[first - 2 :], atol=1e-6)
+    assert abs(pulled.acc[first - 2, 0]) > 100  # the corner, seen two samples ahead
+    np.testing.assert_array_equal(pulled.vel[: first - 2], line.vel[: first - 2])
+    np.testing.assert_array_equal(pulled.acc[: first - 2], line.acc[: first - 2])
     with pytest.raises(ValueError, match="radius"):
         trajectories.within_reach(line, np.zeros(3), -1.0)
     with pytest.raises(ValueError, match=r"takes a sampled reference \(trajectories.sample\(...\)\), got function"):
