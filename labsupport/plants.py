@@ -24,7 +24,7 @@ from labsupport import validate
 from labsupport.sim import RUNAWAY_SPEED, Log, SimulationDiverged
 
 #: The lab's (textbook) parameters.
-LAB_M, LAB_m, LAB_r, LAB_b, LAB_g = 0.5, 1.0, 0.1, 0.1, 9.81
+LAB_M, LAB_m, LAB_r, LAB_b = 0.5, 1.0, 0.1, 0.1
 
 
 #: How many times RK45 may evaluate the dynamics in one run (about 2 s). The lab's runs need

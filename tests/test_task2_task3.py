@@ -40,6 +40,10 @@ def test_single_joint_model_matches_the_analytic_one():
         mujoco.mj_forward(model, data)
         # positive theta lifts the link: gravity load +m g r cos(theta)
         assert data.qfrc_bias[0] == pytest.approx(plant.m * plant.g * plant.r * np.cos(theta), abs=1e-12)
+        assert plant.h(theta, 0.0) == pytest.approx(data.qfrc_bias[0], abs=1e-12)
+        if theta == 0.0:  # held horizontal: the largest load, 0.981 N·m, as the lab prints
+            assert plant.max_gravity_torque == pytest.approx(data.qfrc_bias[0], abs=1e-12)
+            assert f"{plant.max_gravity_torque:.3f}" == "0.981"
         assert mass_matrix(model, data)[0, 0] == pytest.approx(plant.M, abs=1e-12)
     data.qvel[0] = 2.0
     mujoco.mj_forward(model, data)
