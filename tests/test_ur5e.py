@@ -527,6 +527,21 @@ def test_unreachable_target_is_pulled_back_and_the_limits_hold(ur):
     assert np.linalg.norm(asked(log.t[-1]).pos - log.ee[-1]) > 0.2
 
 
+@pytest.mark.parametrize(("center", "short_by"), [((0.0, 1.4, 0.4), 0.1), ((-1.3, 0.0, 0.6), 0.3)])
+def test_a_target_pulled_back_beside_or_behind_the_arm_is_still_out_of_reach(ur, center, short_by):
+    """The sphere of SAFE_REACH is reachable in front of the arm, not all round it: with the flange
+    held down the reach is shorter to the side, and behind the arm the local law does not swing
+    the arm round. The arm stops short, as Task 4's page says, with every value finite."""
+    model, data = ur
+    asked = trajectories.sample(
+        lambda t: trajectories.circle_3d(t, center, 0.1, (1, 1, 1), 0.25), model.opt.timestep, 3.0
+    )
+    log = _run_tracking(model, data, trajectories.within_reach(asked, ur5e.shoulder(model), ur5e.SAFE_REACH), 3.0)
+    for name in ("q", "qdot", "tau", "err"):
+        assert np.all(np.isfinite(getattr(log, name))), name
+    assert metrics.rms_position_error(log, after=1.5) > short_by
+
+
 def test_within_reach_keeps_inner_points_and_differentiates_the_outer_path():
     dt = 0.002
     line = trajectories.sample(
