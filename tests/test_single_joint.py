@@ -153,11 +153,6 @@ def test_lab_sinusoid_rms_figures():
     assert round(100 * (1 - rms_ct / rms_fb), 1) == 79.3
 
 
-def test_cumulative_effort_of_constant_torque():
-    t = np.linspace(0, 2, 2001)
-    assert metrics.cumulative_effort(t, np.full_like(t, 3.0))[-1] == pytest.approx(18.0)
-
-
 def test_rms_of_nothing_is_refused_with_a_reason():
     """An empty window (``after`` past the run's end) used to give NaN and NumPy's "Mean of empty
     slice" warning; now the reason is named."""
@@ -497,3 +492,37 @@ def test_task1_try_it_predictions_hold():
     assert metrics.rms(pdg) > 1.5 * metrics.rms(ct_wrong)  # but above computed torque's error
     assert np.abs(ct_exact).max() < 1e-4  # computed torque with the exact model: zero
     assert pdg_wrong.max() > 1.5 * -pdg_wrong.min() > 0  # the wrong r̃: no longer even
+
+
+@pytest.mark.parametrize("zeta", [0.3, 1.0, 2.5])
+def test_the_closed_form_step_responses_match_an_integrated_ode(zeta):
+    """ÿ + 2ζωn ẏ + ωn² y = ωn² from rest, integrated by SciPy, for each of the three closed forms."""
+    wn, t = 3.0, np.linspace(0.0, 4.0, 401)
+    ode = solve_ivp(
+        lambda _, x: [x[1], wn**2 * (1 - x[0]) - 2 * zeta * wn * x[1]], (0, 4), [0, 0], t_eval=t, rtol=1e-11, atol=1e-12
+    )
+    np.testing.assert_allclose(metrics.second_order_step(t, wn, zeta), ode.y[0], atol=1e-8)
+
+
+def test_settling_time_interpolates_the_band_crossing_and_does_not_depend_on_the_start():
+    """A first-order response 1 − e^{−t} enters the 2 % band at ln 50 s; on a 10 ms grid the answer
+    must come from the crossing, not the nearest sample. The same step from 2 to 5 settles alike and
+    overshoots alike; a response already inside the band settles at its first time."""
+    t = np.arange(0.0, 8.0, 0.01)
+    y = 1 - np.exp(-t)
+    assert metrics.settling_time(t, y, 1.0, 0.0) == pytest.approx(np.log(50), abs=2e-4)
+    assert metrics.settling_time(t, 2 + 3 * y, 5.0, 2.0) == pytest.approx(np.log(50), abs=2e-4)
+    assert metrics.settling_time(t, 5 - 3 * y, 2.0, 5.0) == pytest.approx(np.log(50), abs=2e-4)  # a step down
+    under = metrics.second_order_step(t, 2.0, 0.5)
+    assert metrics.overshoot(2 + 3 * under, 5.0, 2.0) == pytest.approx(metrics.overshoot(under, 1.0, 0.0), rel=1e-12)
+    assert metrics.settling_time(t[100:], y[100:] * 0 + 0.99, 1.0, 0.0) == t[100]
+
+
+def test_cumulative_effort_integrates_the_squared_torque():
+    """E(t) = ∫‖τ‖² dt: c² t for a constant torque, the sum over joints for several, and t³/3 for
+    τ = t (the trapezoidal rule's error, (Δt²/6) t, is under 1e-4 here)."""
+    t = np.linspace(0.0, 2.0, 201)
+    np.testing.assert_allclose(metrics.cumulative_effort(t, np.full_like(t, 3.0)), 9.0 * t, rtol=1e-12)
+    two = np.c_[np.full_like(t, 3.0), np.full_like(t, -4.0)]
+    np.testing.assert_allclose(metrics.cumulative_effort(t, two), 25.0 * t, rtol=1e-12)
+    np.testing.assert_allclose(metrics.cumulative_effort(t, t), t**3 / 3, atol=1e-4)
