@@ -301,6 +301,8 @@ def test_bad_gain_design_inputs():
         gains.actuator_limited_gains(0.5, 0.1, -1.0, 1.0)
     with pytest.raises(ValueError, match="Kd must be finite"):
         gains.second_order(0.5, 0.1, 10.0, float("nan"))
+    # a small overshoot is a valid specification: ζ = −ln(0.005)/√(π² + ln²(0.005)) = 0.860
+    assert gains.damping_for_overshoot(0.5) == pytest.approx(0.8601, abs=1e-4)
     for beyond in (100.0, 150.0):  # 100 % overshoot is no damping at all; more is none that exists
         with pytest.raises(ValueError, match=r"percent_overshoot must be in \(0, 100\)"):
             gains.damping_for_overshoot(beyond)
@@ -516,6 +518,7 @@ def test_settling_time_interpolates_the_band_crossing_and_does_not_depend_on_the
     under = metrics.second_order_step(t, 2.0, 0.5)
     assert metrics.overshoot(2 + 3 * under, 5.0, 2.0) == pytest.approx(metrics.overshoot(under, 1.0, 0.0), rel=1e-12)
     assert metrics.settling_time(t[100:], y[100:] * 0 + 0.99, 1.0, 0.0) == t[100]
+    assert np.isnan(metrics.settling_time(t[:300], y[:300], 1.0, 0.0))  # still 5 % short at 2.99 s
 
 
 def test_cumulative_effort_integrates_the_squared_torque():
