@@ -28,10 +28,12 @@ HOME = "home"
 SCENE_MODEL = "ur5e_scene"
 #: Orientation of the target (w, x, y, z): the attachment site's at the "home" keyframe, tool down.
 HOME_QUAT = (0.0, 1.0, 0.0, 0.0)
-#: Distance from the shoulder-lift axis to the wrist centre, fully stretched [m]
-#: (upper arm 0.425 + forearm 0.392), plus the wrist offsets to the attachment site.
+#: The arm's reach from the shoulder-lift axis [m]: upper arm 0.425 + forearm 0.392, fully stretched,
+#: plus the wrist offsets to the attachment site, 0.127 + 0.1. A sphere is a simplification: with the
+#: flange held pointing down, the reach is about this straight ahead but shorter to the side (Task 4).
 REACH = 0.425 + 0.392 + 0.127 + 0.1
-#: Where an unreachable target is pulled back to: 90 % of the reach, clear of the stretched-out singularity.
+#: Where an unreachable target is pulled back to: 90 % of the reach, clear of the stretched-out singularity
+#: in front of the arm (beside or behind it, still out of reach: Task 4).
 SAFE_REACH = 0.9 * REACH
 _PREFIX = "scene__"
 
