@@ -1256,6 +1256,20 @@ def test_seeded_circles_stay_reachable_and_away_from_singularities():
 # --- stability: the real cause of PD's divergence near the folded arm --------------------------------------
 
 
+def test_the_closed_loops_damping_is_kd_for_pd_at_rest_and_m_kd_for_ct_at_any_speed():
+    """D = −∂(τ − h)/∂q̇: a PD's is Kd·I where the arm is still (the velocity terms of h are quadratic
+    in q̇), and computed torque's is M(q)·Kd at any speed, its +h cancelling the arm's own."""
+    from labsupport.grading.stability import effective_damping
+
+    model, kd = common.arm_model(), 18.0
+    q, fast = np.array([0.4, 0.6, -0.9]), np.array([3.0, -2.0, 4.0])
+    D, _ = effective_damping(model, lambda m, d: -kd * d.qvel, q, np.zeros(3))
+    np.testing.assert_allclose(D, kd * np.eye(3), atol=1e-6)
+    D, M = effective_damping(model, lambda m, d: mass_matrix(m, d) @ (-kd * d.qvel) + bias_forces(d), q, fast)
+    np.testing.assert_allclose(D, kd * M, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(M, mass_matrix(model, common.data_at(model, q, fast)), rtol=1e-12)
+
+
 def test_pd_divergence_near_the_folded_arm_is_explained(master1, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # MuJoCo's default handler would log the divergence to MUJOCO_LOG.TXT here
     model = common.arm_model()

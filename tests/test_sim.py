@@ -446,6 +446,7 @@ def test_lab_timing_counts_steps_as_the_lab_and_skips_the_first_forward(arm):
     model, data = arm
     assert sim.step_count(8.0, 0.002, lab_timing=True) == 4001
     assert sim.step_count(8.0, 0.002) == 4000
+    assert sim.step_count(1.0, 0.5, lab_timing=True) == 2  # 0.5 + 0.5 is 1.0 exactly: the loop stops there
     with pytest.raises(ValueError, match="duration must be finite"):
         sim.step_count(float("inf"), 0.002, lab_timing=True)  # would count for ever
     with pytest.raises(ValueError, match="dt must be positive"):

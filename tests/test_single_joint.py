@@ -464,6 +464,22 @@ def test_the_saturation_measures_check_what_they_are_given():
         metrics.saturation_report(log, applied, names=["shoulder"])
     with pytest.raises(ValueError, match="applied must hold one exerted torque per step and actuator"):
         metrics.peak_torque(log, applied[:, :1])
+
+
+def test_the_peak_torque_is_per_actuator_and_the_report_names_the_first_limited_step():
+    """Torques of 0.5 k on the shoulder and −3 on the elbow over five steps, clipped to ±1 N·m: the
+    elbow is limited from the first step, the shoulder from the fourth (k = 3, t = 6 ms)."""
+    model, data = load_model("planar_2r")
+    log = sim.simulate(model, data, lambda m, d: np.array([0.5 * round(d.time / 0.002), -3.0]), 0.01)
+    assert len(log.t) == 5
+    np.testing.assert_allclose(metrics.peak_torque(log), [2.0, 3.0])
+    applied = np.clip(log.tau, -1.0, 1.0)
+    np.testing.assert_allclose(metrics.peak_torque(log, applied), [1.0, 1.0])
+    np.testing.assert_array_equal(metrics.saturation(log, applied)[:, 0], [False, False, False, True, True])
+    only_shoulder = np.c_[applied[:, 0], log.tau[:, 1]]  # the elbow given what it asked
+    assert "(first at t = 0.006 s; joints shoulder)" in metrics.saturation_report(
+        log, only_shoulder, names=["shoulder", "elbow"]
+    )
     np.testing.assert_array_equal(metrics.peak_torque(log, applied), [1.0, 1.0])
 
 
