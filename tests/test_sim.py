@@ -73,6 +73,8 @@ def test_torque_limit_clips(arm):
         ([1.0, "2"], "torque_limit (a number, or one per actuator: nu = 2) must be numbers, not text"),
         ({"a": 1}, "torque_limit must be a single real number"),
         ([3.0, -4.0], "torque_limit must be positive"),
+        (0.0, "torque_limit must be positive"),  # a motor that gives no torque at all
+        ([2.0, 0.0], "torque_limit must be positive"),
     ],
 )
 def test_a_torque_limit_of_the_wrong_shape_or_value_is_named(arm, limit, words):
