@@ -353,6 +353,10 @@ def test_ik_mistakes_are_named(master1):
     assert wrong_elbow.score == 0 and "the pan angle is right" in wrong_elbow.message
     swapped_pan = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik([x[1], x[0], x[2]], elbow_up))
     assert swapped_pan.score < 1 and "azimuth atan2(y, x)" in swapped_pan.message
+    # and the azimuth it quotes is the target's own
+    quoted = re.search(r"the target \[([^\]]+)\] has azimuth atan2\(y, x\) = (-?[\d.]+) rad", swapped_pan.message)
+    x, y, _ = map(float, quoted.group(1).split())
+    assert float(quoted.group(2)) == pytest.approx(np.arctan2(y, x), abs=2e-3)
 
 
 def test_ik_that_accepts_unreachable_targets_is_told(master1):
