@@ -1636,3 +1636,38 @@ def test_a_slow_law_is_told_the_batch_graders_cpu_budget(monkeypatch, capsys):
     assert "s of CPU time in this check, more than the 0.1 s the batch grader gives them" in out
     grading.check("p1_pd", {"pd_torque": lambda model, data, q_d, Kp, Kd: Kp * (q_d - data.qpos) - Kd * data.qvel})
     assert "Note" not in capsys.readouterr().out
+
+
+def _settings_of(notebook: str, first_name: str) -> dict:
+    """The settings that open the notebook's code cell starting with ``first_name``: its first
+    assignments of values made from NumPy and each other, evaluated."""
+    nb = nbformat.read(ROOT / "notebooks" / notebook, as_version=4)
+    cell = next(c for c in nb.cells if c.cell_type == "code" and c.source.startswith(first_name))
+    names = {"np": np}
+    for node in ast.parse(cell.source).body:  # up to the first statement that is not a setting
+        loads = {n.id for n in ast.walk(node) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Load)}
+        if not isinstance(node, ast.Assign) or not loads <= names.keys():
+            break
+        exec(compile(ast.Module([node], type_ignores=[]), notebook, "exec"), names)
+    return names
+
+
+def test_the_grader_runs_the_students_laws_with_the_problem_notebooks_own_settings():
+    """A student sees the runs of their notebook; the batch grades runs from the same start, with the
+    same gains and the same circle."""
+    p1 = _settings_of("problem1_reaching.ipynb", "q0 =")
+    np.testing.assert_array_equal(p1["q0"], problem1.Q0)
+    assert p1["T_sim"] == problem1.DURATION
+    assert (p1["Kp_pd"], p1["Kd_pd"], p1["Kp_ct"], p1["Kd_ct"]) == (
+        problem1.KP_PD,
+        problem1.KD_PD,
+        problem1.KP_CT,
+        problem1.KD_CT,
+    )
+    p2 = _settings_of("problem2_tracking.ipynb", "center, radius")
+    np.testing.assert_array_equal(p2["center"], problem2.CENTER)
+    np.testing.assert_array_equal(p2["normal"], problem2.NORMAL)
+    assert (p2["radius"], p2["freq"]) == (problem2.RADIUS, problem2.FREQUENCY)
+    np.testing.assert_array_equal(p2["SHOULDER"], common.SHOULDER)
+    gains = _settings_of("problem2_tracking.ipynb", "wn_t, zeta_t")
+    assert (gains["Kp_t"], gains["Kd_t"]) == (problem2.KP, problem2.KD)
