@@ -349,6 +349,10 @@ def test_ik_mistakes_are_named(master1):
     assert swapped.score == 0 and "that is the elbow-down branch" in swapped.message
     one_branch = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, True))
     assert one_branch.score == 0.5 and "elbow-up branch" in one_branch.message
+    right = grade("p1_ik", ik_3r=ik)  # the worst error it quotes is the closed form's: rounding only
+    assert float(re.search(r"worst error (\S+) m", right.message).group(1)) < 1e-12, right.message
+    near = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, elbow_up) + [0.0, 0.0, 3e-5])  # within IK_TOL
+    assert near.score == 1 and 1e-5 < float(re.search(r"worst error (\S+) m", near.message).group(1)) < 1e-4
     wrong_elbow = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, elbow_up) + [0.0, 0.3, 0.0])
     assert wrong_elbow.score == 0 and "the pan angle is right" in wrong_elbow.message
     swapped_pan = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik([x[1], x[0], x[2]], elbow_up))
