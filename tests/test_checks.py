@@ -252,12 +252,13 @@ def test_pd_mistakes_are_named(fn, score, words):
     assert result.score == score and words in result.message, result
 
 
-def ct_variant(spring=1.0, damping=-1.0, mass=True, bias=1.0, scale=1.0, damping_outside=False):
+def ct_variant(spring=1.0, damping=-1.0, mass=True, bias=1.0, scale=1.0, damping_outside=False, gravity=False):
     def ct_joint_torque(model, data, q_d, Kp, Kd):
         M = mass_matrix(model, data) if mass else np.eye(3)
         v = scale * (spring * Kp * (q_d - data.qpos) + (0 if damping_outside else damping * Kd * data.qvel))
         extra = damping * Kd * data.qvel if damping_outside else 0
-        return M @ v + extra + bias * bias_forces(data)
+        h = gravity_at(model, data.qpos) if gravity else bias_forces(data)
+        return M @ v + extra + bias * h
 
     return ct_joint_torque
 
@@ -269,6 +270,9 @@ CT_MISTAKES = [
     (ct_variant(spring=-1.0, damping=1.0), 0.0, "feedback has the wrong sign"),
     (ct_variant(bias=-1.0), 0.25, "added, not subtracted"),
     (ct_variant(damping_outside=True), 0.5, "inside M(q)"),
+    (ct_variant(damping=0.0), 0.5, "the damping term −Kd q̇ inside M(q)(...) is missing"),
+    (ct_variant(damping=1.0), 0.5, "the damping has the wrong sign: it must be −Kd q̇"),
+    (ct_variant(gravity=True), 0.5, "the bias term holds gravity alone"),
     (ct_variant(scale=180 / np.pi), 0.25, "degrees"),
 ]
 
