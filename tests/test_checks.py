@@ -648,6 +648,19 @@ def test_a_joint_velocity_in_the_task_damping_and_a_transposed_solve_are_named()
         assert result.score == 0 and "solve with J, not Jᵀ" in result.message, result
 
 
+@pytest.mark.parametrize(
+    ("mass", "words"),
+    [
+        (lambda M: np.eye(3), "the mass matrix is missing: τ = M(q) J⁻¹(...) + h"),
+        (np.linalg.inv, "the law multiplies by M(q)⁻¹ where it should multiply by M(q)"),
+    ],
+    ids=["no_M", "inverse_M"],
+)
+def test_an_operational_space_law_without_m_or_with_its_inverse_is_named(mass, words):
+    result = grade("p2_osct", ct_op_torque=os_variant(mass=mass))
+    assert result.score == 0.25 and words in result.message, result
+
+
 def test_gravity_alone_for_the_bias_is_named(master2):
     def gravity(model, data):
         return gravity_at(model, data.qpos)
