@@ -36,7 +36,7 @@ from labsupport.grading.feedback import (
     show_beside,
     show_pair,
 )
-from labsupport.grading.stability import stiff_damping
+from labsupport.grading.stability import effective_damping, stiff_damping
 from labsupport.kinematics.planar_2r import Planar2R
 from labsupport.kinematics.planar_2r import inverse_kinematics as planar_ik
 from labsupport.trajectories import circle_3d
@@ -353,10 +353,13 @@ def test_ik_mistakes_are_named(master1):
     assert swapped.score == 0 and "that is the elbow-down branch" in swapped.message
     one_branch = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, True))
     assert one_branch.score == 0.5 and "elbow-up branch" in one_branch.message
-    right = grade("p1_ik", ik_3r=ik)  # the worst error it quotes is the closed form's: rounding only
-    assert float(re.search(r"worst error (\S+) m", right.message).group(1)) < 1e-12, right.message
+
+    def worst_error(result) -> float:
+        return float(re.search(r"worst error (\S+) m", result.message).group(1))
+
+    assert worst_error(grade("p1_ik", ik_3r=ik)) < 1e-12  # the closed form's: rounding only
     near = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, elbow_up) + [0.0, 0.0, 3e-5])  # within IK_TOL
-    assert near.score == 1 and 1e-5 < float(re.search(r"worst error (\S+) m", near.message).group(1)) < 1e-4
+    assert near.score == 1 and 1e-5 < worst_error(near) < 1e-4
     wrong_elbow = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, elbow_up) + [0.0, 0.3, 0.0])
     assert wrong_elbow.score == 0 and "the pan angle is right" in wrong_elbow.message
     swapped_pan = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik([x[1], x[0], x[2]], elbow_up))
@@ -1284,8 +1287,6 @@ def test_seeded_circles_stay_reachable_and_away_from_singularities():
 def test_the_closed_loops_damping_is_kd_for_pd_at_rest_and_m_kd_for_ct_at_any_speed():
     """D = −∂(τ − h)/∂q̇: a PD's is Kd·I where the arm is still (the velocity terms of h are quadratic
     in q̇), and computed torque's is M(q)·Kd at any speed, its +h cancelling the arm's own."""
-    from labsupport.grading.stability import effective_damping
-
     model, kd = common.arm_model(), 18.0
     q, fast = np.array([0.4, 0.6, -0.9]), np.array([3.0, -2.0, 4.0])
     D, _ = effective_damping(model, lambda m, d: -kd * d.qvel, q, np.zeros(3))

@@ -63,6 +63,12 @@ def _run_lab(model, data, reference, **stepping):
     )
 
 
+def assert_all_finite(log):
+    """Every joint angle, speed, torque and error the run logged is a finite number."""
+    for name in ("q", "qdot", "tau", "err"):
+        assert np.all(np.isfinite(getattr(log, name))), name
+
+
 def _run_tracking(model, data, reference, duration=8.0, compensate=True, jdot=True):
     site, arrays = model.site(ur5e.SITE).id, PoseArrays.for_model(model)
     inertia = implicit_damping(Servo.from_model(model), model.opt.timestep) * compensate
@@ -439,9 +445,9 @@ def test_leaving_jdot_qdot_out_changes_the_torque_by_exactly_its_term(ur):
     data.qpos[:] = model.key(ur5e.HOME).qpos + rng.uniform(-0.3, 0.3, model.nq)
     data.qvel[:] = rng.uniform(-1.0, 1.0, model.nv)
     mujoco.mj_forward(model, data)
-    x_d, quat_d = data.site_xpos[site] + 0.01, np.array([1.0, 0.0, 0.0, 0.0])
+    x_d = data.site_xpos[site] + 0.01
     torques = [
-        tracking_torque(model, data, site, x_d, np.zeros(3), np.zeros(3), quat_d, LAB_GAINS, dt_kv, arrays, jdot).copy()
+        tracking_torque(model, data, site, x_d, np.zeros(3), np.zeros(3), QUAT_D, LAB_GAINS, dt_kv, arrays, jdot).copy()
         for jdot in (True, False)
     ]
     term = -(mass_matrix(model, data) + np.diag(dt_kv)) @ np.linalg.solve(
@@ -518,8 +524,7 @@ def test_unreachable_target_is_pulled_back_and_the_limits_hold(ur):
     log = _run_tracking(model, data, reachable, duration=2.0)
     servo = Servo.from_model(model)
     applied = servo_force(servo, log.q, log.qdot, log.ctrl)
-    for name in ("q", "qdot", "tau", "err"):
-        assert np.all(np.isfinite(getattr(log, name))), name
+    assert_all_finite(log)
     assert np.all((applied >= servo.force_lo) & (applied <= servo.force_hi))
     assert metrics.saturation(log, applied).any()
     assert "limits were hit" in metrics.saturation_report(log, applied)
@@ -537,8 +542,7 @@ def test_a_target_pulled_back_beside_or_behind_the_arm_is_still_out_of_reach(ur,
         lambda t: trajectories.circle_3d(t, center, 0.1, (1, 1, 1), 0.25), model.opt.timestep, 3.0
     )
     log = _run_tracking(model, data, trajectories.within_reach(asked, ur5e.shoulder(model), ur5e.SAFE_REACH), 3.0)
-    for name in ("q", "qdot", "tau", "err"):
-        assert np.all(np.isfinite(getattr(log, name))), name
+    assert_all_finite(log)
     assert metrics.rms_position_error(log, after=1.5) > short_by
 
 
