@@ -150,9 +150,10 @@ EXPECTED = {
     "hides_its_code.ipynb": (FULL, "graded", ["run code built while the notebook runs"]),
     # right answers written unusually (SciPy's least squares for the IK, np.matrix gains, MuJoCo's mj_mulM)
     "unusual_but_right.ipynb": (FULL, "graded", ["all checks passed"]),
-    # the master as saved from Colab (hostile/build.py's from_colab): %matplotlib magics and
-    # google.colab imports atop its imports, a %%shell cell; the first two raised in the sandbox's
-    # plain IPython shell and stopped the imports cell (2 of 10), the last raised UsageError
+    # the master as saved from Colab (hostile/build.py's from_colab): %matplotlib magics,
+    # google.colab imports and a change into /content atop its imports, a %%shell cell; the first
+    # three raised in the sandbox's plain IPython shell and stopped the imports cell (2 of 10),
+    # the last raised UsageError
     "from_colab.ipynb": (FULL, "graded", ["all checks passed"]),
     # attacks on the grader, from notebooks that implement nothing: any point is a successful attack
     "escapes.ipynb": ({}, "graded", NOTHING),

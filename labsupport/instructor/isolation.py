@@ -371,6 +371,11 @@ def command(layout: Layout, argv: list[str], writable: dict[str, Path] | None = 
         str(layout.limits.scratch),
         "--tmpfs",
         HOME,
+        # Colab's working folder: a notebook from Colab that changes into /content or writes
+        # there runs on, its files landing in the scratch home.
+        "--symlink",
+        HOME,
+        "/content",
     ]
     for inner, host in (writable or {}).items():
         cmd += ["--bind", str(host), inner]

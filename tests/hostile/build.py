@@ -73,16 +73,19 @@ def load(path: Path):
 
 def from_colab(nb):
     """``nb`` as a student may save it from Colab: its imports cell opens with ``%matplotlib
-    inline`` and Colab's own modules (a Drive mounted), and ends with another backend and a
-    download; a ``%%shell`` cell (Colab's own magic) follows it. Right answers there keep full
-    marks."""
+    inline``, Colab's own modules (a Drive mounted) and a test for Colab that, passed, changes
+    into Colab's working folder ``/content``; it ends with another backend and a download. A
+    ``%%shell`` cell (Colab's own magic) follows it. Right answers there keep full marks."""
     k = _imports(nb)
     cell = nb.cells[k]
     cell.source = (
         "%matplotlib inline\n"
+        "import os, sys\n"
         "from google.colab import drive, files\n"
         "from google.colab.patches import cv2_imshow\n"
-        "drive.mount('/content/drive')\n" + cell.source + "\n%matplotlib widget\nfiles.download('run.mp4')\n"
+        "drive.mount('/content/drive')\n"
+        "if 'google.colab' in sys.modules:\n"
+        "    os.chdir('/content')\n" + cell.source + "\n%matplotlib widget\nfiles.download('run.mp4')\n"
     )
     nb.metadata["colab"] = {"provenance": []}
     return insert_after(nb, k, "%%shell\necho the cells run on\n")
