@@ -652,16 +652,85 @@ def test_a_joint_velocity_in_the_task_damping_and_a_transposed_solve_are_named()
 
 
 @pytest.mark.parametrize(
-    ("mass", "words"),
+    ("wrong", "score", "words"),
     [
-        (lambda M: np.eye(3), "the mass matrix is missing: τ = M(q) J⁻¹(...) + h"),
-        (np.linalg.inv, "the law multiplies by M(q)⁻¹ where it should multiply by M(q)"),
+        ({"mass": lambda M: np.eye(3)}, 0.25, "the mass matrix is missing: τ = M(q) J⁻¹(...) + h"),
+        ({"mass": np.linalg.inv}, 0.25, "the law multiplies by M(q)⁻¹ where it should multiply by M(q)"),
+        ({"kp": -1.0, "kd": -1.0}, 0.0, "the feedback has the wrong sign: e = x_d − x"),
+        ({"kd": -1.0}, 0.5, "the damping has the wrong sign: Kd (ẋ_d − J q̇)"),
+        ({"kd": 0.0}, 0.5, "the damping term Kd (ẋ_d − J q̇) is missing"),
     ],
-    ids=["no_M", "inverse_M"],
+    ids=["no_M", "inverse_M", "feedback_sign", "damping_sign", "no_damping"],
 )
-def test_an_operational_space_law_without_m_or_with_its_inverse_is_named(mass, words):
-    result = grade("p2_osct", ct_op_torque=os_variant(mass=mass))
-    assert result.score == 0.25 and words in result.message, result
+def test_an_operational_space_term_mistake_is_named_with_its_credit(wrong, score, words):
+    result = grade("p2_osct", ct_op_torque=os_variant(**wrong))
+    assert result.score == score and words in result.message, result
+
+
+@pytest.mark.parametrize(
+    ("wrong", "score", "words"),
+    [
+        ({"bias": lambda model, data: np.zeros(3)}, 0.25, "the bias term h(q, q̇) = data.qfrc_bias is missing"),
+        ({"mass": lambda M: np.eye(3)}, 0.25, "the mass matrix is missing: τ = M(q)(...) + h"),
+        ({"mass": np.linalg.inv}, 0.25, "the law multiplies by M(q)⁻¹ where it should multiply by M(q)"),
+        ({"ff": 0.0}, 0.25, "the feed-forward acceleration q̈_d is missing"),
+        ({"kp": -1.0, "kd": -1.0}, 0.0, "the feedback has the wrong sign: e = q_d − q"),
+        ({"kp": -1.0}, 0.0, "the spring term has the wrong sign: Kp (q_d − q)"),
+    ],
+    ids=["no_h", "no_M", "inverse_M", "no_feed_forward", "feedback_sign", "spring_sign"],
+)
+def test_an_ik_joint_ct_term_mistake_is_named_with_its_credit(master2, wrong, score, words):
+    result = grade("p2_ikct", ct_ik_joint_torque=ik_variant(master2["ik_3r"], **wrong))
+    assert result.score == score and words in result.message, result
+
+
+def test_an_exact_law_is_not_told_its_jdot_is_an_approximation(master2):
+    """The note on an approximate J̇q̇ (finite differences, accepted) is for approximations only:
+    the master's exact laws pass without it."""
+    for name, fname in (("p2_osct", "ct_op_torque"), ("p2_ikct", "ct_ik_joint_torque")):
+        result = grade(name, **{fname: master2[fname]})
+        assert result.score == 1 and "approximation" not in result.message, result
+
+
+def test_the_at_rest_note_names_the_laws_own_term_and_follows_only_a_bare_difference(master2):
+    """At the state at rest a bare difference is told which J̇q̇ term vanishes there (the arm's in
+    OS-CT, the reference's in IK + joint CT); a named mistake, or a bare difference at a moving
+    state, gets no such note."""
+    for name, fname, law, term, velocity in (
+        ("p2_osct", "ct_op_torque", os_variant(kp=0.97), "so J̇(q, q̇) q̇ is zero", "another velocity than q̇;"),
+        (
+            "p2_ikct",
+            "ct_ik_joint_torque",
+            ik_variant(master2["ik_3r"], kp=0.97),
+            "so J̇(q_d, q̇_d) q̇_d is zero",
+            "another velocity than q̇_d;",
+        ),
+    ):
+        result = grade(name, **{fname: law})
+        assert result.score == 0 and term in result.message and velocity in result.message, result
+
+    result = grade("p2_osct", ct_op_torque=os_mistake("no_bias"))  # named at the state at rest
+    assert result.score == 0.25 and "momentarily at rest" not in result.message, result
+
+    def jdot_tripled(model, data, *ref):  # right at rest, a bare difference once the arm moves
+        return os_law(model, data, *ref, jdq=3 * site_jdot_qdot(model, data, SITE)[:3])
+
+    result = grade("p2_osct", ct_op_torque=jdot_tripled)
+    assert result.score == 0 and "expected [" in result.message, result
+    assert "momentarily at rest" not in result.message, result
+
+
+def test_a_named_ik_ct_mistake_worth_nothing_is_not_told_to_recheck_the_whole_law(master2):
+    """The long "the torque differs from IK + joint CT: check q_d = IK(x_d) ..." advice is for a
+    bare difference only; a named mistake that scores 0 (the elbow-down IK) is told just what it is."""
+    ik = master2["ik_3r"]
+
+    def elbow_down(model, data, *ref):
+        return ik_ct_law(model, data, *ref, ik=lambda x, elbow_up=True: ik(x, False))
+
+    result = grade("p2_ikct", ct_ik_joint_torque=elbow_down)
+    assert result.score == 0 and "elbow-down branch" in result.message, result
+    assert "the torque differs from IK + joint CT" not in result.message, result
 
 
 def test_gravity_alone_for_the_bias_is_named(master2):
