@@ -1762,3 +1762,134 @@ def test_the_grader_runs_the_students_laws_with_the_problem_notebooks_own_settin
     np.testing.assert_array_equal(p2["SHOULDER"], common.SHOULDER)
     gains = _settings_of("problem2_tracking.ipynb", "wn_t, zeta_t")
     assert (gains["Kp_t"], gains["Kd_t"]) == (problem2.KP, problem2.KD)
+
+
+# --- drawn test states: margins, branches, and the tracking cases' promises ----------------------
+
+
+def keeps_margins(x):
+    """The margins of common.Margins, written out: tip 0.35..1.75 m from the shoulder, 0.35 m off
+    the z axis, 0.1 m above the floor, pan angle and elbow-up shoulder angle 0.35 rad from ±π."""
+    x = np.asarray(x, float)
+    d, rho = np.linalg.norm(x - [0.0, 0.0, 1.0]), np.hypot(x[0], x[1])
+    return (
+        0.35 <= d <= 1.75
+        and rho >= 0.35
+        and x[2] >= 0.1
+        and abs(np.arctan2(x[1], x[0])) <= np.pi - 0.35
+        and np.arctan2(rho, x[2] - 1.0) <= np.pi - 0.35
+    )
+
+
+@pytest.mark.parametrize(
+    ("x", "safe"),
+    [
+        ([1.0, 0.2, 1.3], True),
+        ([-0.6, -0.5, 0.5], True),
+        ([1.8, 0.0, 1.0], False),  # out of reach
+        ([1.7, 0.0, 1.0], True),
+        ([0.3, 0.0, 1.5], False),  # near the z axis
+        ([0.4, 0.0, 1.5], True),
+        ([1.0, 0.0, 0.05], False),  # below the floor margin
+        ([1.0, 0.0, 0.15], True),
+        ([np.cos(3.0), np.sin(3.0), 1.0], False),  # pan angle near ±π
+        ([np.cos(-3.0), np.sin(-3.0), 1.0], False),
+        ([np.cos(2.6), np.sin(2.6), 1.0], True),
+        ([np.cos(-2.6), np.sin(-2.6), 1.0], True),
+    ],
+)
+def test_safe_points_keep_each_margin(x, safe):
+    assert bool(common.safe_point(x)) == safe and bool(keeps_margins(x)) == safe
+
+
+def test_drawn_configurations_face_their_tip_on_the_asked_branch_within_the_margins():
+    """draw_configuration: the tip keeps the margins, q1 is the tip's azimuth, the angles lie
+    away from ±π (q1, q2), the elbow is on the asked branch (elbow up: cos q3 > 0), and the elbow angle
+    θ (q3 = θ − π/2 elbow up, −θ − π/2 elbow down) spreads over (0, π)."""
+    model, rng = common.arm_model(), np.random.default_rng(5)
+    thetas = {True: [], False: []}
+    for up in (True, False) * 60:
+        q = common.draw_configuration(rng, elbow_up=up)
+        x = tip_at(model, q)
+        assert keeps_margins(x), (q, x)
+        assert abs(q[0] - np.arctan2(x[1], x[0])) < 1e-9, q
+        assert abs(q[0]) <= np.pi - 0.35 and -1.2 <= q[1] <= np.pi - 0.35, q
+        assert (np.cos(q[2]) > 0) == up and (common.elbow_height(model, q) > 0) == up, q
+        thetas[up].append(q[2] + np.pi / 2 if up else -q[2] - np.pi / 2)
+    for up, th in thetas.items():
+        assert 0 < min(th) and max(th) < np.pi and max(th) - min(th) > 1.0, (up, min(th), max(th))
+
+
+@pytest.mark.parametrize("still", [None, "arm", "reference"])
+def test_tracking_cases_are_consecutive_states_about_a_smooth_reference(still):
+    """tracking_cases: LEAD_IN + 1 states one control step apart; a quadratic joint reference
+    (q̇_d its derivative, q̈_d constant) about an elbow-up configuration within the margins, and
+    its Cartesian image; the arm near the reference, its velocity that of its positions; gains
+    in their ranges; the still case at rest (the arm, or the reference with the arm moving)."""
+    model = common.arm_model()
+    dt = model.opt.timestep
+    cases = common.tracking_cases(PUBLIC_SEED, "p2_osct", still=still)
+    assert len(cases) == 4 + (still is not None)
+    for k, case in enumerate(cases):
+        n = common.LEAD_IN + 1
+        assert case.still == (still is not None and k == 0)
+        assert len(case.states) == n and all(a.shape == (n, 3) for a in (case.q_d, case.qd_d, case.qdd_d, case.x_d))
+        t = np.array([s.t for s in case.states])
+        q = np.array([s.q for s in case.states])
+        qdot = np.array([s.qdot for s in case.states])
+        assert np.allclose(np.diff(t), dt) and 0.5 <= t[-1] <= 5.0, t
+        assert np.allclose(case.qdd_d, case.qdd_d[0]) and np.all(np.abs(case.qdd_d) <= 3.0)
+        assert np.allclose(np.diff(case.qd_d, axis=0), dt * case.qdd_d[1:])
+        assert np.allclose(np.diff(case.q_d, axis=0), dt * (case.qd_d[:-1] + case.qd_d[1:]) / 2)
+        assert np.all(np.abs(case.qd_d[-1]) <= 1.5)
+        x_end = tip_at(model, case.q_d[-1])
+        assert keeps_margins(x_end) and np.cos(case.q_d[-1][2]) > 0
+        for j in range(n):
+            J, jdq = jacobian_at(model, case.q_d[j], case.qd_d[j])
+            assert np.allclose(case.x_d[j], tip_at(model, case.q_d[j]))
+            assert np.allclose(case.xd_d[j], J @ case.qd_d[j])
+            assert np.allclose(case.xdd_d[j], J @ case.qdd_d[j] + jdq)
+        assert np.all(np.abs(q - case.q_d) < 0.05 + 0.3 * common.LEAD_IN * dt + 1e-12)
+        assert case.still and still == "arm" or np.all(np.abs(qdot - case.qd_d) <= 0.3)
+        assert np.allclose(np.diff(q, axis=0) / dt, (qdot[:-1] + qdot[1:]) / 2, atol=1e-9)
+        assert 30.0 <= case.Kp <= 90.0 and 8.0 <= case.Kd <= 20.0
+        if case.still and still == "arm":
+            assert np.all(qdot == 0) and np.all(q == q[-1])
+        elif case.still:
+            assert np.all(case.qd_d[-1] == 0) and np.linalg.norm(qdot[-1]) > 0
+        else:
+            assert np.linalg.norm(case.qd_d[-1]) > 0 and np.linalg.norm(qdot[-1]) > 0
+
+
+def test_an_unknown_still_is_refused():
+    with pytest.raises(ValueError, match="still must be"):
+        common.tracking_cases(PUBLIC_SEED, "p2_osct", still="both")
+
+
+def test_the_over_the_top_and_mirrored_poses_reach_the_same_tip():
+    """over_the_top: the same tip with the pan half a turn round, angles in (−π, π];
+    mirror_elbow: the same tip on the other elbow branch."""
+    model, rng = common.arm_model(), np.random.default_rng(3)
+    for _ in range(10):
+        q = common.draw_configuration(rng, elbow_up=True)
+        x, back, mirrored = tip_at(model, q), common.over_the_top(q), common.mirror_elbow(q)
+        assert np.allclose(tip_at(model, back), x, atol=1e-9) and np.allclose(tip_at(model, mirrored), x, atol=1e-9)
+        assert common.pan_turned_round(back, x) and np.all(np.abs(back) <= np.pi), back
+        assert common.elbow_height(model, mirrored) < 0 < common.elbow_height(model, back)
+
+
+def test_a_pan_is_turned_round_only_past_a_quarter_turn_from_the_target():
+    x = [1.0, 0.0, 1.0]
+    for q1, turned in ((0.0, False), (1.2, False), (-1.2, False), (2.0, True), (-2.0, True), (np.pi, True)):
+        assert common.pan_turned_round([q1, 0.3, 0.2], x) == turned, q1
+
+
+def test_a_jdot_off_by_more_than_its_own_size_scores_nothing():
+    """Half credit for another J̇q̇ holds only while it is closer to MuJoCo's than zero is
+    (ε < 1): a torque implying −J̇q̇/2 (ε = 1.5) scores 0 with both values shown."""
+
+    def jdot_half_reversed(model, data, *ref):
+        return os_law(model, data, *ref, jdq=-0.5 * site_jdot_qdot(model, data, SITE)[:3])
+
+    result = grade("p2_osct", ct_op_torque=jdot_half_reversed)
+    assert result.score == 0 and "expected [" in result.message, result
