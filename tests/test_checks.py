@@ -93,6 +93,14 @@ def tip_at(model, q):
     return d.site(SITE).xpos.copy()
 
 
+def posed_log(model, q, t):
+    """A tracking run's log with the joint angles ``q`` at the times ``t``, its tip exactly on its
+    reference at every step."""
+    q = np.asarray(q, dtype=float)
+    ee = np.array([tip_at(model, p) for p in q])
+    return types.SimpleNamespace(q=q, ee=ee, ref=ee, t=np.asarray(t, dtype=float))
+
+
 def newton_ik(x, elbow_up=True):
     """Numerical IK: Newton's method on MuJoCo's forward kinematics, its steps capped at 0.3 rad
     (full steps wander off by many turns from a poor start, and where they land then depends on
@@ -986,9 +994,8 @@ def test_a_run_that_leaves_its_branch_is_told_which_way():
         (common.over_the_top(front[2]), "at t = 0.20 s the arm faced away from its tip, on the over-the-top"),
         (full_turn, "by t = 0.20 s the pan had swung round"),
     ):
-        q = np.array([*front[:2], other])
-        ee = np.array([tip_at(model, p) for p in q])
-        log = types.SimpleNamespace(q=q, ee=ee, ref=ee, t=np.array([0.0, 0.1, 0.2]))
+        log = posed_log(model, [*front[:2], other], [0.0, 0.1, 0.2])
+        q, ee = log.q, log.ee
         assert words in problem2._left_the_branch(model, log, every=1)
         before = types.SimpleNamespace(q=q[:2], ee=ee[:2], ref=ee[:2], t=log.t[:2])
         assert problem2._left_the_branch(model, before, 1) is None
@@ -1914,9 +1921,7 @@ def test_a_run_is_told_its_branch_in_every_quadrant(azimuth):
         (common.mirror_elbow(front), "at t = 0.10 s the elbow was below the shoulder-to-tip line"),
         (full_turn, "by t = 0.10 s the pan had swung round"),
     ):
-        q = np.array([front, other])
-        ee = np.array([tip_at(model, p) for p in q])
-        log = types.SimpleNamespace(q=q, ee=ee, ref=ee, t=np.array([0.0, 0.1]))
+        log = posed_log(model, [front, other], [0.0, 0.1])
         assert words in problem2._left_the_branch(model, log, every=1)
 
 
@@ -1929,9 +1934,9 @@ def test_a_tracking_run_reads_its_poses_from_the_first_and_at_least_every_tenth(
     down = common.mirror_elbow(front)
     t = 0.01 * np.arange(15)
     for leave in (0, 5):
-        q = np.array([front if k < leave else down for k in range(len(t))])
-        ee = np.array([tip_at(model, p) for p in q])
-        said = problem2._left_the_branch(model, types.SimpleNamespace(q=q, ee=ee, ref=ee, t=t))
+        said = problem2._left_the_branch(
+            model, posed_log(model, [front if k < leave else down for k in range(len(t))], t)
+        )
         assert said is not None and "the elbow was below the shoulder-to-tip line" in said, said
         when = float(said.split("at t = ")[1].split(" s")[0])
         assert t[leave] <= when < t[leave] + 0.1 - 1e-9, said
@@ -2075,9 +2080,7 @@ def test_a_run_that_leaves_its_branch_asks_about_the_ik_only_where_the_ik_left_i
     model, rng = common.arm_model(), np.random.default_rng(11)
     front = common.draw_configuration(rng, elbow_up=True)
     down = common.mirror_elbow(front)
-    q = np.array([front, down])
-    ee = np.array([tip_at(model, p) for p in q])
-    log = types.SimpleNamespace(q=q, ee=ee, ref=ee, t=np.array([0.0, 0.1]))
+    log = posed_log(model, [front, down], [0.0, 0.1])
     for answer, words in (
         (down, "does the IK switch to it there?"),
         (common.over_the_top(front), "does the IK switch to it there?"),
