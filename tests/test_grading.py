@@ -754,9 +754,15 @@ def test_a_law_written_to_a_module_by_the_notebook_imports_as_in_jupyter(tmp_pat
     k = _defining(nb, "pd_torque")
     nb.cells[k].source = "%%writefile my_pd.py\nimport numpy as np\n\n" + nb.cells[k].source
     nb = insert_after(nb, k, "from my_pd import pd_torque")
+    # a file saved into Colab's working folder is listed where it lies, with the word that the two are one
+    nb = insert_after(nb, k + 1, "open('/content/notes.txt', 'w').write('tried Kp = 50')")
     row = _graded(tmp_path, nb, BUDGET)
     assert row["status"] == "graded" and row["scores"] == FULL, row
-    wrote = 'the notebook wrote files: "/home/student/my_pd.py" (in its private scratch space, removed after grading)'
+    wrote = (
+        'the notebook wrote files: "/home/student/my_pd.py", "/home/student/notes.txt" (in its private scratch '
+        "space, removed after grading; /home/student is the notebook's home folder, and Colab's /content is "
+        "the same folder)"
+    )
     assert row["notes"] == [wrote], row["notes"]
 
 

@@ -618,6 +618,11 @@ MISSING_MODULE_ADVICE = (
 )
 
 
+#: Said where a file listed sits in the sandbox's home: a notebook from Colab that wrote to
+#: ``/content/notes.txt`` finds it listed as ``/home/student/notes.txt``, the same file.
+HOME_IS_CONTENT = f"; {isolation.HOME} is the notebook's home folder, and Colab's /content is the same folder"
+
+
 def _paths(entries: list) -> list[str]:
     """The entries of a file list that are absolute paths, as the sandbox lists them, each quoted
     and cut to :data:`MAX_PATH_CHARS` (a file's name is the notebook's own text: quoted, it cannot
@@ -725,7 +730,9 @@ def grade(
             notes.append(
                 f"the notebook {label} files: {', '.join(paths[:5])}"
                 + (" ..." if len(paths) > 5 else "")
-                + " (in its private scratch space, removed after grading)"
+                + " (in its private scratch space, removed after grading"
+                + (HOME_IS_CONTENT if any(p.startswith(f'"{isolation.HOME}/') for p in paths) else "")
+                + ")"
             )
     for name in names:
         if statuses[name] == NOT_IMPLEMENTED:
