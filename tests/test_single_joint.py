@@ -122,6 +122,43 @@ def test_pi_speed_control_matches_closed_form():
     assert log.qdot[:, 0][-1] == pytest.approx(omega_d, abs=1e-3)
 
 
+def test_a_critically_damped_pi_speed_loop_overshoots_where_the_closed_form_says():
+    """Task 1's PI design (ωn = 2, ζ = 1) overshoots its 5 rad/s: the error starts moving,
+    ė(0) = -Kp ω_d / M, so e = (ω_d + c t) e^(-ωn t) with c = ė(0) + ωn ω_d < 0 crosses zero at
+    -ω_d / c and is most negative at 1/ωn - ω_d / c, where the page finds the peak speed."""
+    wn, omega_d = 2.0, 5.0
+    g = gains.pd_gains(HORIZONTAL.M, HORIZONTAL.b, wn, 1.0)
+    Kp, Ki = g.Kd, g.Kp
+    log = HORIZONTAL.simulate(lambda t, x: pi_speed_torque(t, x[0], x[1], omega_d, Kp, Ki), 6.0, rtol=1e-10, atol=1e-12)
+    c = -Kp * omega_d / HORIZONTAL.M + wn * omega_d
+    t_peak = 1 / wn - omega_d / c
+    peak = omega_d - (omega_d + c * t_peak) * np.exp(-wn * t_peak)
+    k = np.argmax(log.qdot[:, 0])
+    assert c < 0 and peak > omega_d + 0.5  # an overshoot of more than 10 % at ζ = 1
+    assert log.qdot[k, 0] == pytest.approx(peak, abs=1e-6)
+    assert log.t[k] == pytest.approx(t_peak, abs=2 * (log.t[1] - log.t[0]))
+    crossing = log.t[np.argmax(log.qdot[:, 0] > omega_d)]
+    assert crossing == pytest.approx(-omega_d / c, abs=2 * (log.t[1] - log.t[0]))
+    assert f"{peak:.2f}" == "5.54"  # the page's figure
+
+
+def test_feedforward_alone_turns_back_short_of_the_top_in_move_b():
+    """Task 1's move B with r̃ = 0.08: the link climbs only to about 71° and falls back past the
+    horizontal; feedback alone lags while gravity holds the link back and runs past 135° after
+    the top, where gravity pulls it on."""
+    ref = lambda t: versine(t, np.pi / 2)  # noqa: E731
+    wrong = SingleJoint(r=0.08, g=9.81)
+    ff = VERTICAL.simulate(feedforward_along(wrong, ref), np.pi, state0=ref(0.0)[:2])
+    top = np.degrees(ff.q[:, 0].max())
+    assert 65 < top < 80 and np.degrees(ff.q[-1, 0]) < 0
+    Kp, Kd = gains.spec_gains(VERTICAL.M, VERTICAL.b, 5.0, 2.0)[0]
+    fb = VERTICAL.simulate(pd_along(ref, Kp, Kd), np.pi, state0=ref(0.0)[:2])
+    behind = np.degrees(ref(fb.t).pos - fb.q[:, 0])  # θ_d − θ
+    assert behind.max() > 10 and behind[-1] < -10  # first behind, then past the target
+    crossed = fb.t[np.argmax((fb.t > 0.5) & (behind < 0))]
+    assert np.degrees(ref(crossed).pos) > 90  # it runs ahead only once past the top
+
+
 @pytest.mark.parametrize("M,b", [(0.5, 0.1), (2.0, 0.0), (0.3, 0.05)])
 @pytest.mark.parametrize("wn,zeta", [(2.523, 1.0), (3.383, 0.591), (10.0, 0.3)])
 def test_gain_design_round_trips(M, b, wn, zeta):

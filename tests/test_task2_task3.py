@@ -99,6 +99,34 @@ def test_task2_feedback_alone_is_much_worse():
     assert pd_only > 4 * mismatched
 
 
+def test_task2_wrong_model_spends_less_because_the_link_rides_lower():
+    """Task 2's effort: with r̃ = 0.08 the feedback supplies nearly all the gravity torque the model
+    leaves out, and the run still spends less than the matched one, because the link rides below
+    the reference, where on the lower half of the swing, which carries the larger torques, gravity
+    needs less. The offset lies where e ≈ m g (r − r̃) cos θ_d / (K_p − m g r sin θ_d) puts it."""
+    (Kp, Kd), _ = gains.spec_gains(0.5, 0.1, 5.0, 2.0)
+    _, matched = task2_rms_deg(0.1)
+    _, wrong = task2_rms_deg(0.08)
+    ref = sinusoid(wrong.t)
+    settled = wrong.t >= 2.0
+    left_out = 1.0 * 9.81 * (0.1 - 0.08) * np.cos(ref.pos)
+    fed_back = pd_torque(wrong.q[:, 0], wrong.qdot[:, 0], ref.pos, ref.vel, Kp, Kd)
+    assert 0.95 < fed_back[settled].mean() / left_out[settled].mean() < 1.0
+    effort = {name: metrics.cumulative_effort(log.t, log.tau)[-1] for name, log in (("m", matched), ("w", wrong))}
+    assert effort["w"] < effort["m"]
+    below = ref.pos < 0
+    assert matched.tau[below, 0].mean() > 1.5 * matched.tau[~below, 0].mean()
+    # the gravity torque at the angle actually reached, against the desired one: the saving
+    delta = 1.0 * 9.81 * 0.1 * (np.cos(wrong.q[:, 0]) - np.cos(ref.pos))
+    above = ref.pos > np.radians(3)  # the link 1.6-2.7° lower: past the horizontal only above 1.4°
+    assert (delta[below & settled] < 0).all() and (delta[above & settled] > 0).all()
+    error = np.degrees(ref.pos - wrong.q[:, 0])[wrong.t >= 1.0]
+    estimate = np.degrees(left_out / (Kp - 1.0 * 9.81 * 0.1 * np.sin(ref.pos)))[wrong.t >= 1.0]
+    assert abs(error.min() - estimate.min()) < 0.1 and abs(error.max() - estimate.max()) < 0.1
+    plain = np.degrees(left_out / Kp)[wrong.t >= 1.0]  # without gravity's stiffness: 0.3° off
+    assert estimate.min() < plain.min() - 0.2
+
+
 def test_task2_try_it_predictions_hold():
     """Task 2's "Try it" box: computed torque with the wrong model plus an integral term, the
     integral kept by the controller. With K_i = K_p the second period's mean error is gone and
