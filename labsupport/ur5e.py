@@ -28,12 +28,14 @@ HOME = "home"
 SCENE_MODEL = "ur5e_scene"
 #: Orientation of the target (w, x, y, z): the attachment site's at the "home" keyframe, tool down.
 HOME_QUAT = (0.0, 1.0, 0.0, 0.0)
-#: The arm's reach from the shoulder-lift axis [m]: upper arm 0.425 + forearm 0.392, fully stretched,
-#: plus the wrist offsets to the attachment site, 0.127 + 0.1. A sphere is a simplification: with the
-#: flange held pointing down, the reach is about this straight ahead but shorter to the side (Task 4).
-REACH = 0.425 + 0.392 + 0.127 + 0.1
-#: Where an unreachable target is pulled back to: 90 % of the reach, clear of the stretched-out singularity
-#: in front of the arm (beside or behind it, still out of reach: Task 4).
+#: The arm's reach [m]: the farthest the attachment site gets from :func:`reach_centre`, 0.9693 m,
+#: found by maximising that distance over the joint angles from many starts (elbow straight; a test
+#: checks it both ways). Less than upper arm 0.425 + forearm 0.392 + the wrist's links 0.127 + 0.1 +
+#: 0.1 laid end to end, since the wrist's offsets sit across the arm, not along it. A sphere is a
+#: simplification: with the flange held pointing down the arm reaches less far up and down (Task 4).
+REACH = 0.9694
+#: Where an unreachable target is pulled back to: 90 % of the reach, clear of the stretched-out
+#: singular pose (in front of the arm and beside it; behind it, the arm would have to swing round: Task 4).
 SAFE_REACH = 0.9 * REACH
 _PREFIX = "scene__"
 
@@ -75,16 +77,22 @@ def load_ur5e(keyframe: str | None = HOME):
     return model, data
 
 
-def shoulder(model: mujoco.MjModel) -> np.ndarray:
-    """Position [m] of the shoulder-lift axis at the ``home`` keyframe: the centre of the sphere
-    of radius :data:`REACH` that the attachment site cannot leave. ``model`` is the UR5e's
-    (:func:`load_ur5e`); another model is refused by name."""
+def reach_centre(model: mujoco.MjModel) -> np.ndarray:
+    """Centre [m] of the sphere of radius :data:`REACH` that the attachment site cannot leave: the
+    point of the base's vertical axis at the height of the shoulder-lift axis. The shoulder itself
+    sits 0.138 m off that axis and the turning base carries it round, so a sphere about the
+    shoulder would be too large on one side and too small on the other; about this point it is the
+    same in every direction the base can turn to. ``model`` is the UR5e's (:func:`load_ur5e`);
+    another model is refused by name."""
     validate.mujoco_model(model)
     if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "shoulder_lift_joint") < 0:
         raise ValueError(
-            "shoulder: the model has no shoulder_lift_joint; pass the UR5e's (labsupport.ur5e.load_ur5e())"
+            "reach_centre: the model has no shoulder_lift_joint; pass the UR5e's (labsupport.ur5e.load_ur5e())"
         )
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, validate.model_object(model, "keyframe", HOME))
     mujoco.mj_kinematics(model, data)
-    return data.joint("shoulder_lift_joint").xanchor.copy()
+    base = data.joint("shoulder_pan_joint")
+    axis, through = base.xaxis, base.xanchor  # the base's turning axis (vertical)
+    shoulder = data.joint("shoulder_lift_joint").xanchor
+    return through + axis * np.dot(shoulder - through, axis)
