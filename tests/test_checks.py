@@ -28,11 +28,17 @@ from labsupport.grading import PUBLIC_SEED, check, common, problem1, problem2, r
 from labsupport.grading.feedback import (
     FAIL,
     NOT_IMPLEMENTED,
+    PARTIAL,
     PASS,
     DirectProbe,
+    ForbiddenCall,
+    NotImplementedYet,
     Probe,
     State,
     StudentError,
+    failed,
+    forbidden_reason,
+    refused,
     show_beside,
     show_pair,
 )
@@ -789,10 +795,37 @@ def test_wrong_numbers_are_printed_so_they_differ():
     assert got.removeprefix("got ") != expected.split(" (")[0]
     assert "%" in text
     assert show_beside(1.0004, 1.0) == "1.0004" and show_beside(1.00000004, 1.0) != "1"
+    # four significant digits at least, one more at a time, and as many as a double needs
+    assert show_beside(1.23456789, 2.0) == "1.235" and show_beside(1.00041, 1.0) == "1.0004"
+    assert show_beside(1 + 2**-52, 1.0) == "1.0000000000000002"
+    assert show_pair([1.00001], [1.00002]).startswith("got [1.00001], expected [1.00002] (difference 1e-05, ")
+    assert show_pair([1 + 2**-52], [1.0]).startswith("got [1.0000000000000002], expected [1.0000000000000000]")
+    assert show_pair([1, 2, 2], [1, 2, 3]) == (
+        "got [1.0000 2.0000 2.0000], expected [1.0000 2.0000 3.0000] (difference 1, 26.7 % of the expected value)"
+    )
+    assert show_pair([0.5, 0.0], [0.0, 0.0]).endswith("(difference 0.5)")  # no share of a zero
     generic = grade("p1_pd", pd_torque=lambda m, d, q_d, Kp, Kd: 1.0001 * (Kp * (q_d - d.qpos) - Kd * d.qvel))
     assert generic.score == 0 and "got" in generic.message
     shown = generic.message.split("got ")[1].split(" (difference")[0]
     assert shown.split(", expected ")[0] != shown.split(", expected ")[1]
+
+
+def test_a_score_is_kept_within_its_check_and_a_refusal_says_why():
+    """A score handed to ``failed`` stays in [0, 1]; a function that could not be used is told
+    apart: not written yet, a forbidden call (its reason kept, also from the sandbox's "raised
+    RuntimeError: ..." text), or any other problem, in the student's own words."""
+    assert failed("x", "m", 1.5).score == 1.0 and failed("x", "m", 1.5).status == PARTIAL
+    assert failed("x", "m", -0.5).score == 0.0 and failed("x", "m", -0.5).status == FAIL
+    reason = rules.forbidden_message("labsupport.controllers.joint_space.ct_joint_torque")
+    assert forbidden_reason(ForbiddenCall(reason)) == reason
+    assert forbidden_reason(StudentError(f"ct_joint_torque raised RuntimeError: {reason}")) == reason
+    assert forbidden_reason(StudentError(f"{reason} (then raised RuntimeError: out of memory)")).startswith(reason)
+    assert forbidden_reason(StudentError("pd_torque raised RuntimeError: singular matrix")) is None
+    assert refused("p1_ct", "CT", NotImplementedYet("ct is None")).status == NOT_IMPLEMENTED
+    forbidden = refused("p1_ct", "CT", StudentError(f"ct_joint_torque raised RuntimeError: {reason}"))
+    assert forbidden.score == 0 and forbidden.message == f"CT: {reason}"
+    other = refused("p1_ct", "CT", StudentError("ct raised ValueError: shapes"))
+    assert other.status == FAIL and other.message == "CT: ct raised ValueError: shapes"
 
 
 # --- unusual but correct: full marks -------------------------------------------------------------------

@@ -121,25 +121,25 @@ def show_beside(value: float, limit: float) -> str:
     """``value`` with enough significant digits that it never prints like ``limit`` (4 at least):
     1.0004 beside a limit of 1 prints as 1.0004, not 1."""
     digits = 4
-    while digits < 15 and value != limit and float(f"{value:.{digits}g}") == limit:
+    while digits < 17 and value != limit and float(f"{value:.{digits}g}") == limit:  # 17 tell any two doubles apart
         digits += 1
     return f"{value:.{digits}g}"
 
 
 def show_pair(got, expected) -> str:
     """``got … , expected …`` with enough digits that two different vectors never print alike,
-    and their relative difference."""
+    and their difference, also as a share of the expected value unless that is zero."""
     got, expected = np.asarray(got, dtype=float), np.asarray(expected, dtype=float)
     precision = 4
-    while precision < 15:
+    while precision < 17:
         with np.printoptions(precision=precision, suppress=True, floatmode="fixed"):
             a, b = np.array2string(got), np.array2string(expected)
         if a != b:
             break
         precision += 1
-    diff = float(np.linalg.norm(got - expected))
-    rel = diff / max(float(np.linalg.norm(expected)), 1e-12)
-    return f"got {a}, expected {b} (difference {diff:.3g}, {100 * rel:.3g} % of the expected value)"
+    diff, size = float(np.linalg.norm(got - expected)), float(np.linalg.norm(expected))
+    share = f", {100 * diff / size:.3g} % of the expected value" if size > 0 else ""  # none of zero
+    return f"got {a}, expected {b} (difference {diff:.3g}{share})"
 
 
 @dataclass(frozen=True)
