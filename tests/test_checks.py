@@ -24,7 +24,7 @@ import pytest
 import labsupport
 import labsupport.controllers.joint_space as joint_space_alias
 from labsupport.dynamics import bias_forces, mass_matrix, site_jacobian, site_jdot_qdot
-from labsupport.grading import PUBLIC_SEED, check, common, problem1, problem2, registry, rules
+from labsupport.grading import PUBLIC_SEED, check, common, feedback, problem1, problem2, registry, rules
 from labsupport.grading.feedback import (
     FAIL,
     NOT_IMPLEMENTED,
@@ -38,9 +38,11 @@ from labsupport.grading.feedback import (
     StudentError,
     failed,
     forbidden_reason,
+    raised_text,
     refused,
     show_beside,
     show_pair,
+    where_raised,
 )
 from labsupport.grading.stability import effective_damping, stiff_damping
 from labsupport.kinematics.planar_2r import Planar2R
@@ -826,6 +828,30 @@ def test_a_score_is_kept_within_its_check_and_a_refusal_says_why():
     assert forbidden.score == 0 and forbidden.message == f"CT: {reason}"
     other = refused("p1_ct", "CT", StudentError("ct raised ValueError: shapes"))
     assert other.status == FAIL and other.message == "CT: ct raised ValueError: shapes"
+
+
+def test_an_error_gets_the_hint_of_its_own_cause_and_the_students_line():
+    """Each hint of ``raised_text`` needs both of its signs: a singular LinAlgError (not any
+    LinAlgError, nor any error that says singular), a shape error about a six (not any shape
+    error). ``where_raised`` names the student's line, not NumPy's, where NumPy raised."""
+    singular = raised_text("f", "LinAlgError: Singular matrix")
+    assert singular.endswith(feedback.SINGULAR_HINT)
+    for error in ("LinAlgError: Array must not contain infs or NaNs", "ValueError: the Jacobian is singular here"):
+        assert raised_text("f", error) == f"f raised {error}", error
+    rows = "ValueError: operands could not be broadcast together with shapes (6,) (3,)"
+    assert raised_text("f", rows).endswith(feedback.JACOBIAN_ROWS_HINT)
+    for error in ("ValueError: shapes (3,) and (2,) not aligned", "ValueError: expected 6 numbers"):
+        assert raised_text("f", error) == f"f raised {error}", error
+
+    def law(model, data):
+        return np.linalg.solve(np.zeros((2, 2)), np.ones(2))
+
+    with pytest.raises(np.linalg.LinAlgError) as caught:
+        law(None, None)
+    assert (
+        where_raised(caught.value)
+        == f" (line {law.__code__.co_firstlineno + 1} of law: return np.linalg.solve(np.zeros((2, 2)), np.ones(2)))"
+    )
 
 
 # --- unusual but correct: full marks -------------------------------------------------------------------
