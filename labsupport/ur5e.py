@@ -28,11 +28,12 @@ HOME = "home"
 SCENE_MODEL = "ur5e_scene"
 #: Orientation of the target (w, x, y, z): the attachment site's at the "home" keyframe, tool down.
 HOME_QUAT = (0.0, 1.0, 0.0, 0.0)
-#: The arm's reach [m]: the farthest the attachment site gets from :func:`reach_centre`, 0.9693 m,
-#: found by maximising that distance over the joint angles from many starts (elbow straight; a test
-#: checks it both ways). Less than upper arm 0.425 + forearm 0.392 + the wrist's links 0.127 + 0.1 +
-#: 0.1 laid end to end, since the wrist's offsets sit across the arm, not along it. A sphere is a
-#: simplification: with the flange held pointing down the arm reaches less far up and down (Task 4).
+#: The arm's reach [m]: the farthest the attachment site gets from :func:`reach_centre`, 0.96934 m,
+#: found by maximising that distance over the joint angles from many starts (elbow straight), rounded
+#: up so that it bounds (a test checks it both ways). Less than upper arm 0.425 + forearm 0.392 +
+#: the wrist's links 0.127 + 0.1 + 0.1 laid end to end, since the wrist's offsets sit across the
+#: arm, not along it. A sphere is a simplification: with the flange held pointing down the arm
+#: reaches less far up and down (Task 4).
 REACH = 0.9694
 #: Where an unreachable target is pulled back to: 90 % of the reach, clear of the stretched-out
 #: singular pose (in front of the arm and beside it; behind it, the arm would have to swing round: Task 4).

@@ -150,17 +150,24 @@ def test_the_reach_centre_is_on_the_base_axis_and_the_reach_is_tight(ur):
     data = mujoco.MjData(model)
     site = model.site(ur5e.SITE).id
 
-    def distance(q):
+    def distance(q, point):
         data.qpos[:6] = q
         mujoco.mj_kinematics(model, data)
-        return np.linalg.norm(data.site_xpos[site] - centre)
+        return np.linalg.norm(data.site_xpos[site] - point)
+
+    def farthest(point):
+        return max(
+            -minimize(lambda q: -distance(q, point), rng.uniform(-np.pi, np.pi, 6), method="Nelder-Mead").fun
+            for _ in range(3)
+        )
 
     rng = np.random.default_rng(2)
-    assert max(distance(rng.uniform(-np.pi, np.pi, 6)) for _ in range(2000)) <= ur5e.REACH
-    farthest = max(
-        -minimize(lambda q: -distance(q), rng.uniform(-np.pi, np.pi, 6), method="Nelder-Mead").fun for _ in range(3)
-    )
-    assert ur5e.REACH - 1e-3 < farthest <= ur5e.REACH
+    assert max(distance(rng.uniform(-np.pi, np.pi, 6), centre) for _ in range(2000)) <= ur5e.REACH
+    assert ur5e.REACH - 1e-3 < farthest(centre) <= ur5e.REACH
+    mujoco.mj_resetDataKeyframe(model, data, model.key(ur5e.HOME).id)
+    mujoco.mj_kinematics(model, data)
+    shoulder = data.joint("shoulder_lift_joint").xanchor.copy()  # 0.138 m off the axis at home
+    assert farthest(shoulder) > ur5e.REACH + 0.1
     # another model, or data in the model's place: MuJoCo's constructor or KeyError before
     arm, arm_data = load_model("planar_2r")
     with pytest.raises(ValueError, match=r"no shoulder_lift_joint; pass the UR5e's"):
