@@ -365,12 +365,17 @@ def _library_dirs() -> tuple[str, ...]:
     return tuple(os.path.join(os.path.realpath(d), "") for d in dirs)
 
 
+#: Frames of library code that name no file: Python's frozen modules, and NumPy's dispatch
+#: wrappers before NumPy 1.25 (np.linalg.solve raised from "<__array_function__ internals>").
+_LIBRARY_PSEUDO_FILES = ("<frozen", "<__array_function__ internals>")
+
+
 def where_raised(err: BaseException) -> str:
     """`` (line N of <function>: <its code>)`` for the last line of the student's own code that the
     error passed through (not NumPy's, MuJoCo's or labsupport's), or ``""``."""
     for frame in reversed(traceback.extract_tb(err.__traceback__)):
         if not os.path.realpath(frame.filename).startswith(_library_dirs()) and not frame.filename.startswith(
-            "<frozen"
+            _LIBRARY_PSEUDO_FILES
         ):
             code = f": {' '.join(frame.line.split())}" if frame.line else ""  # one line, runs of spaces as one
             return f" (line {frame.lineno} of {frame.name}{code})"
