@@ -806,6 +806,7 @@ def test_wrong_numbers_are_printed_so_they_differ():
         "got [1.0000 2.0000 2.0000], expected [1.0000 2.0000 3.0000] (difference 1, 26.7 % of the expected value)"
     )
     assert show_pair([0.5, 0.0], [0.0, 0.0]).endswith("(difference 0.5)")  # no share of a zero
+    assert show_pair([0.1], [0.2]).endswith("(difference 0.1, 50 % of the expected value)")  # a small one has one
     generic = grade("p1_pd", pd_torque=lambda m, d, q_d, Kp, Kd: 1.0001 * (Kp * (q_d - d.qpos) - Kd * d.qvel))
     assert generic.score == 0 and "got" in generic.message
     shown = generic.message.split("got ")[1].split(" (difference")[0]
