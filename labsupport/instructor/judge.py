@@ -725,13 +725,15 @@ def grade(
         probe.stop()
 
     for label in ("wrote", "changed", "deleted"):
-        paths = _paths(_listed(files, label))
+        listed = _listed(files, label)
+        paths = _paths(listed)
         if paths:
+            in_home = any(str(p).startswith(f"{isolation.HOME}/") for p in listed)
             notes.append(
                 f"the notebook {label} files: {', '.join(paths[:5])}"
                 + (" ..." if len(paths) > 5 else "")
                 + " (in its private scratch space, removed after grading"
-                + (HOME_IS_CONTENT if any(p.startswith(f'"{isolation.HOME}/') for p in paths) else "")
+                + (HOME_IS_CONTENT if in_home else "")
                 + ")"
             )
     for name in names:
