@@ -49,15 +49,19 @@ class Servo:
         """Read the servos of a model whose actuators are affine position servos, one per joint.
 
         Raises:
-            ValueError: the model's actuators are not position servos on each of its joints.
+            ValueError: the model's actuators are not position servos on each of its joints;
+                the message names the first condition that fails.
         """
         validate.mujoco_model(model)
         kp = model.actuator_gainprm[:, 0].copy()
         bias = model.actuator_biasprm[:, :3]
-        if model.nu != model.nv or not np.allclose(bias[:, 1], -kp) or np.any(kp <= 0):
+        reason = _not_a_servo(model, kp, bias)
+        if reason:
             raise ValueError(
-                "the model's actuators are not position servos (gainprm kp, biasprm 0 -kp -kv) "
-                "on each of its joints; use the default actuation (ctrl = tau) for torque motors"
+                f"the model's actuators are not position servos on each of its joints: {reason}. "
+                "Servo.from_model needs one affine servo per hinge or slide joint, in joint order "
+                "(gainprm kp, biasprm 0 -kp -kv, gear 1, no activation dynamics), as MuJoCo's "
+                "<position> actuator writes it; use the default actuation (ctrl = tau) for torque motors"
             )
         inf = np.full(model.nu, np.inf)
         force_limited = model.actuator_forcelimited.astype(bool)
@@ -73,6 +77,26 @@ class Servo:
         for a in arrays.values():
             a.setflags(write=False)
         return cls(**arrays)
+
+
+def _not_a_servo(model: mujoco.MjModel, kp: np.ndarray, bias: np.ndarray) -> str:
+    """Why the actuators of ``model`` are not one invertible position servo per joint, or ''."""
+    joint = np.arange(model.nu)
+    if model.nu != model.nv or model.nq != model.nv:
+        return f"it has {model.nu} actuators, {model.nq} joint positions and {model.nv} joint velocities"
+    if np.any(model.actuator_trntype != mujoco.mjtTrn.mjTRN_JOINT) or np.any(model.actuator_trnid[:, 0] != joint):
+        return "actuator i must drive joint i"
+    if np.any(model.actuator_gear[:, 0] != 1):
+        return f"the gears are {model.actuator_gear[:, 0]}, not 1"
+    if np.any(model.actuator_dyntype != mujoco.mjtDyn.mjDYN_NONE):
+        return "an actuator has activation dynamics (a timeconst), so its force lags its command"
+    if np.any(model.actuator_gaintype != mujoco.mjtGain.mjGAIN_FIXED) or np.any(
+        model.actuator_biastype != mujoco.mjtBias.mjBIAS_AFFINE
+    ):
+        return "an actuator's gain is not fixed or its bias is not affine"
+    if np.any(kp <= 0) or not np.allclose(bias[:, 1], -kp) or np.any(bias[:, 0] != 0):
+        return f"the gains kp are {kp} and the biases (biasprm[:3]) are {bias.tolist()}"
+    return ""
 
 
 def servo_ctrl(servo: Servo, q, qdot, tau, out: np.ndarray | None = None) -> np.ndarray:

@@ -43,6 +43,10 @@ CASES = {
         lambda a, g: dynamics.task_space_inertia(*a, np.ones(2)),
         r"jac must be a Jacobian of shape \(k, 2\)",
     ),
+    "a run shorter than one step": (
+        lambda a, g: sim.simulate(*a, lambda m, d: d.qfrc_bias, 0.4 * a[0].opt.timestep),
+        r"duration must be at least one time step \(0.002 s\), got 0.0008",
+    ),
     "effort of text": (lambda a, g: metrics.cumulative_effort(g.t, "abc"), "tau must be numbers"),
     "effort of a huge integer": (lambda a, g: metrics.cumulative_effort([0.0, 1.0], [HUGE, 1]), "tau must be"),
     "overshoot of unequal lists": (lambda a, g: metrics.overshoot(RAGGED, 1.0, 0.0), "a step response is numbers"),

@@ -812,3 +812,24 @@ def test_a_reference_sampled_more_coarsely_than_the_step_is_named(arm):
         warnings.simplefilter("error")
         for dt in (model.opt.timestep, 0.001):
             sim.simulate(model, data, constant([0.0, 0.0]), 0.1, site="end_effector", reference=sample(circle, dt, 0.2))
+
+
+def test_a_ctrlrange_on_some_motors_bounds_those_alone():
+    """Motor a stops at -1 N·m (and 100), motor b has no range: b's torque passes whole, with or without a
+    torque_limit, and the warning names a only, and only while its range is tighter than the limit."""
+    model = mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body><joint name='ja'/><geom size='.1' mass='50'/><body pos='0 0 .3'><joint name='jb'/>"
+        "<geom size='.1' mass='50'/></body></body></worldbody><actuator><motor name='a' joint='ja' ctrlrange='-1 100'/>"
+        "<motor name='b' joint='jb'/></actuator></mujoco>"
+    )
+    data = mujoco.MjData(model)
+    with pytest.warns(RuntimeWarning, match=r"on 10 of 10 steps.*\(actuators a; ctrlrange \[-1, 100\]\)"):
+        log = sim.simulate(model, data, constant([-5.0, -50.0]), 10 * model.opt.timestep)
+    np.testing.assert_array_equal(log.tau, np.tile([-1.0, -50.0], (10, 1)))
+    with pytest.warns(RuntimeWarning, match=r"\(actuators a; "):
+        log = sim.simulate(model, data, constant([-5.0, -50.0]), 10 * model.opt.timestep, torque_limit=30.0)
+    np.testing.assert_array_equal(log.tau, np.tile([-1.0, -30.0], (10, 1)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the limit is tighter than a's range: the limit's doing, no warning
+        log = sim.simulate(model, data, constant([-5.0, -50.0]), 10 * model.opt.timestep, torque_limit=0.5)
+    np.testing.assert_array_equal(log.tau, np.tile([-0.5, -0.5], (10, 1)))

@@ -654,3 +654,60 @@ def test_servo_mappings_name_inputs_they_cannot_use(ur):
         servo_ctrl(servo, q, None, np.zeros(6))
     with pytest.raises(ValueError, match="qdot = None"):
         servo_force(servo, q, None, np.zeros(6))
+
+
+def _one_joint(actuator: str) -> mujoco.MjModel:
+    return mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body><joint name='j' axis='0 1 0'/><geom size='.1' pos='.2 0 0'/></body></worldbody>"
+        f"<actuator>{actuator}</actuator></mujoco>"
+    )
+
+
+_BIASED = "<general joint='j' biastype='affine' gainprm='50' biasprm='3 -50 -5'/>"
+_AFFINE_GAIN = "<general joint='j' gaintype='affine' biastype='affine' gainprm='50 1' biasprm='0 -50 -5'/>"
+_TWO = "<position joint='j' kp='50'/><position joint='j' kp='50'/>"
+
+
+@pytest.mark.parametrize(
+    "actuator, reason",
+    [
+        ("<position joint='j' kp='0'/>", r"the gains kp are \[0.\]"),
+        (_BIASED, r"the gains kp are \[50.\] and the biases \(biasprm\[:3\]\) are \[\[3.0, -50.0, -5.0\]\]"),
+        ("<position joint='j' kp='50' gear='2'/>", r"the gears are \[2.\], not 1"),
+        ("<position joint='j' kp='50' timeconst='0.1'/>", r"an actuator has activation dynamics \(a timeconst\)"),
+        (_AFFINE_GAIN, "an actuator's gain is not fixed"),
+        (_TWO, "it has 2 actuators, 1 joint positions and 1 joint velocities"),
+    ],
+)
+def test_servo_refuses_what_it_cannot_invert(actuator, reason):
+    """Each of these would make servo_ctrl ask for the wrong torque, so from_model names why it refuses."""
+    with pytest.raises(ValueError, match=f"not position servos on each of its joints: {reason}"):
+        Servo.from_model(_one_joint(actuator))
+
+
+def test_servo_refuses_actuators_out_of_joint_order():
+    model = mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body><joint name='a'/><geom size='.1'/><body pos='0 0 .3'><joint name='b'/>"
+        "<geom size='.1'/></body></body></worldbody>"
+        "<actuator><position joint='b' kp='50'/><position joint='a' kp='50'/></actuator></mujoco>"
+    )
+    with pytest.raises(ValueError, match="actuator i must drive joint i"):
+        Servo.from_model(model)
+
+
+def test_unlimited_servo_is_inverted_exactly_and_read_only():
+    """A servo with no ctrlrange or forcerange gets infinite bounds, and MuJoCo exerts what servo_ctrl asks."""
+    model = _one_joint("<position joint='j' kp='50' kv='5' ctrllimited='false' forcelimited='false'/>")
+    servo = Servo.from_model(model)
+    np.testing.assert_array_equal(np.r_[servo.force_lo, servo.ctrl_lo], [-np.inf, -np.inf])
+    np.testing.assert_array_equal(np.r_[servo.force_hi, servo.ctrl_hi], [np.inf, np.inf])
+    np.testing.assert_array_equal(np.r_[servo.kp, servo.kv], [50.0, 5.0])
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = 0.4, -1.5
+    for tau in (-1e4, -3.0, 0.0, 7.5, 1e4):  # far beyond any limit a limited servo would set
+        data.ctrl[:] = servo_ctrl(servo, data.qpos, data.qvel, np.array([tau]))
+        mujoco.mj_forward(model, data)
+        np.testing.assert_allclose(data.qfrc_actuator, [tau], rtol=1e-12, atol=1e-9)
+    for array in (servo.kp, servo.kv, servo.force_lo, servo.ctrl_hi):
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = 1.0
