@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import labsupport  # noqa: F401  (before mujoco)
-from labsupport import actuators, book, dynamics, metrics, render, sim, trajectories, validate
+from labsupport import actuators, book, dynamics, gains, metrics, render, sim, trajectories, validate
 from labsupport.grading import feedback
 from labsupport.plants import load_model
 
@@ -46,6 +46,24 @@ CASES = {
     "a run shorter than one step": (
         lambda a, g: sim.simulate(*a, lambda m, d: d.qfrc_bias, 0.4 * a[0].opt.timestep),
         r"duration must be at least one time step \(0.002 s\), got 0.0008",
+    ),
+    "a run of no time": (
+        lambda a, g: sim.simulate(*a, lambda m, d: d.qfrc_bias, 0.0),
+        "duration must be positive, got 0.0",
+    ),
+    "sampled at no step": (
+        lambda a, g: trajectories.sample(lambda t: trajectories.set_point(t, 1.0), 0.0, 1.0),
+        "dt must be positive, got 0.0",
+    ),
+    "sampled over negative time": (
+        lambda a, g: trajectories.sample(lambda t: trajectories.set_point(t, 1.0), 0.002, -1.0),
+        "duration must be non-negative, got -1.0",
+    ),
+    "gains for negative friction": (lambda a, g: gains.pd_gains(0.5, -0.1, 10.0, 1.0), "b must be non-negative"),
+    "gains for negative damping": (lambda a, g: gains.pd_gains(0.5, 0.1, 10.0, -1.0), "zeta must be non-negative"),
+    "effort over a repeated time": (
+        lambda a, g: metrics.cumulative_effort([0.0, 0.1, 0.1], [1.0, 2.0, 3.0]),
+        "the times t must increase from sample to sample",
     ),
     "effort of text": (lambda a, g: metrics.cumulative_effort(g.t, "abc"), "tau must be numbers"),
     "effort of a huge integer": (lambda a, g: metrics.cumulative_effort([0.0, 1.0], [HUGE, 1]), "tau must be"),

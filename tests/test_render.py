@@ -708,6 +708,18 @@ def test_the_ffmpeg_of_imageio_ffmpeg_is_used_when_none_is_on_the_path(no_ffmpeg
     assert mediapy.video_is_available()  # mediapy was pointed there: "no-such-ffmpeg-program" is not
 
 
+@needs_ffmpeg
+def test_video_quality_spans_h264s_whole_range():
+    """qp 0 (lossless) and 51 (coarsest) both encode, the lossless video the larger; 52 and -1 are refused."""
+    frames = np.random.default_rng(2).integers(0, 255, (4, 48, 64, 3), dtype=np.uint8)
+    noise = "Random noise, in four small frames."
+    sizes = [len(render.video_html(frames, fps=4, description=noise, qp=qp)) for qp in (0, 51)]
+    assert sizes[0] > 2 * sizes[1]
+    for qp in (52, -1, 2.5):
+        with pytest.raises(ValueError, match=rf"qp must be a whole number from 0 to 51, got {qp}"):
+            render.video_html(frames, fps=4, description=noise, qp=qp)
+
+
 PICTURE_SCRIPT = r"""
 import json
 import labsupport

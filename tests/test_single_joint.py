@@ -61,12 +61,12 @@ def test_pd_meets_overshoot_and_settling_specification():
     assert abs(ts - 2.0) < 0.05 * 2.0
 
 
-@pytest.mark.parametrize("zeta", [0.5, 1.0, 3.0, 20.0])
-def test_step_settling_time_matches_an_integrated_response(zeta):
+@pytest.mark.parametrize("zeta, wn", [(0.5, 4.0), (1.0, 4.0), (3.0, 4.0), (20.0, 4.0), (0.7, 40.0)])
+def test_step_settling_time_matches_an_integrated_response(zeta, wn):
     """The exact settling time, against the ODE integrated numerically (independent of the closed
     form): the last crossing of the 2 % band. Overdamped joints settle on their slow mode, far
-    beyond 4/(zeta wn) (before, the search stopped there and returned nan)."""
-    wn = 4.0
+    beyond 4/(zeta wn) (before, the search stopped there and returned nan). A stiff joint
+    (wn = 40 rad/s) settles in a tenth of a second."""
 
     def rhs(t, x):
         return [x[1], wn**2 * (1.0 - x[0]) - 2 * zeta * wn * x[1]]
@@ -570,6 +570,8 @@ def test_settling_time_interpolates_the_band_crossing_and_does_not_depend_on_the
     assert metrics.settling_time(t, 5 - 3 * y, 2.0, 5.0) == pytest.approx(np.log(50), abs=2e-4)  # a step down
     under = metrics.second_order_step(t, 2.0, 0.5)
     assert metrics.overshoot(2 + 3 * under, 5.0, 2.0) == pytest.approx(metrics.overshoot(under, 1.0, 0.0), rel=1e-12)
+    assert metrics.overshoot(y, 1.0, 0.0) == 0.0  # 1 − e^{−t} never passes 1
+    assert metrics.overshoot(5 - 3 * under, 2.0, 5.0) == pytest.approx(16.303, abs=1e-3)  # a step down dips below 2
     assert metrics.settling_time(t[100:], np.full(len(t) - 100, 0.99), 1.0, 0.0) == t[100]
     assert np.isnan(metrics.settling_time(t[:300], y[:300], 1.0, 0.0))  # still 5 % short at 2.99 s
 

@@ -102,6 +102,7 @@ def test_the_circle_basis_is_the_labs():
         ((0, 0, 1), (0, 1, 0), (-1, 0, 0)),
         ((0, 0, -2), (0, -1, 0), (-1, 0, 0)),
         ((1, 0, 0), (0, -1, 0), (0, 0, -1)),
+        ((1, 2, 3), (2, -1, 0), (3, 6, -5)),  # tilted: u lies in the horizontal plane
         ((0, 0.3, 1), (0, 1, -0.3), (-1.09, 0, 0)),  # |n_z| > 0.9 |n|: still the e_x rule
     ):
         n = np.array(normal, float) / np.linalg.norm(normal)
