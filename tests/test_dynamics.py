@@ -471,3 +471,19 @@ def test_a_wrist_singularity_is_not_blamed_on_the_target():
     assert np.linalg.matrix_rank(J) == 5  # an independent look: one direction of motion is lost
     with pytest.raises(ValueError, match="two of its joint axes line up, as a six-axis wrist's do at q5 = 0"):
         dynamics.jacobian_solve(J, np.ones(6))
+
+
+def test_the_mujoco4_advice_is_given_for_the_old_mj_fullM_call_only():
+    """The lab's mj_fullM(model, M, data.qM) fails on MuJoCo 4 in one of two ways, and only those
+    get the advice; another MuJoCo function's wrong arguments, or a wrong shape, do not."""
+    for error in (
+        "'mujoco._structs.MjData' object has no attribute 'qM'",
+        "mj_fullM(): incompatible function arguments. The following argument types are supported:",
+    ):
+        assert dynamics.full_m_advice(error).startswith(". mj_fullM changed with MuJoCo 4")
+    for error in (
+        "mj_jacSite(): incompatible function arguments. The following argument types are supported:",
+        "mj_fullM: dst should be of shape (nv, nv)",
+        "",
+    ):
+        assert dynamics.full_m_advice(error) == ""

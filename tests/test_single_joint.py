@@ -280,11 +280,31 @@ def test_log_metrics_say_what_the_log_lacks():
 
 
 @pytest.mark.parametrize(
-    "kwargs,word", [({"M": 0.0}, "M"), ({"M": -1.0}, "M"), ({"b": -0.1}, "b"), ({"m": float("nan")}, "m")]
+    "kwargs,word",
+    [({"M": 0.0}, "M"), ({"M": -1.0}, "M"), ({"b": -0.1}, "b"), ({"m": float("nan")}, "m"), ({"m": -0.1}, "m")],
 )
 def test_bad_parameters_are_named(kwargs, word):
     with pytest.raises(ValueError, match=rf"^{word} "):
         SingleJoint(**kwargs)
+
+
+@pytest.mark.parametrize(
+    "run, message",
+    [
+        ({"duration": 0.0}, "duration must be positive, got 0.0"),
+        ({"dt": 0.0}, "dt must be positive, got 0.0"),
+        ({"dt": 2.0}, r"dt must be at most the duration \(1.0 s\), got 2.0"),
+        ({"atol": -1e-9}, "atol must be positive, got -1e-09"),
+    ],
+)
+def test_bad_run_settings_are_named(run, message):
+    """A zero or negative setting is named before SciPy sees it; a step as long as the run gives the
+    one sample it promises (samples at 0, dt, 2dt, … < duration)."""
+    settings = {"duration": 1.0} | run
+    with pytest.raises(ValueError, match=message) as excinfo:
+        HORIZONTAL.simulate(lambda t, x: 0.0, **settings)
+    _assert_no_scipy_frames(excinfo)
+    np.testing.assert_array_equal(HORIZONTAL.simulate(lambda t, x: 0.0, 1.0, dt=1.0).t, [0.0])
 
 
 def _assert_no_scipy_frames(excinfo):
