@@ -404,6 +404,23 @@ def test_ik_that_accepts_unreachable_targets_is_told(master1):
         assert "no points lost" in result.message
 
 
+def test_ik_that_refuses_unreachable_targets_with_another_error_is_told_which_to_raise(master1):
+    """The master's ValueError gets no remark; an IK that refuses with another exception keeps
+    its points and is told that ValueError is the one to raise."""
+    assert "out of reach" not in grade("p1_ik", ik_3r=master1["ik_3r"]).message
+
+    def arithmetic(x, elbow_up=True):
+        if np.linalg.norm(np.asarray(x) - [0, 0, 1]) > 2:
+            raise ArithmeticError("too far")
+        return master1["ik_3r"](x, elbow_up)
+
+    result = grade("p1_ik", ik_3r=arithmetic)
+    assert result.score == 1, result
+    assert "(For a target out of reach, [2.4 0.  1.5], it should raise ValueError; it raised ArithmeticError" in (
+        result.message
+    )
+
+
 def test_the_out_of_reach_probe_leaks_no_numpy_warning_into_the_students_output(master1):
     """An IK that takes arccos of a cosine past 1 printed NumPy's "invalid value encountered in
     arccos" under the check: the check's own probe, not anything the student ran."""
@@ -1752,6 +1769,22 @@ def test_an_ik_with_one_wrong_branch_is_told_which_target_and_branch(master1):
     assert str(result).startswith("◐ [p1_ik] (50 % of this check's points) IK: 5 of 10")
     missing = grade("p1_ik")
     assert missing.message == "IK: ik_3r is not defined: run its cell (above) first, or restore it if it was deleted"
+
+
+def test_an_ik_that_raises_on_one_branch_keeps_the_other_branchs_credit(master1):
+    """The same error on every elbow-down call is not the same failure on every call: the five
+    right elbow-up solutions still count."""
+    right = master1["ik_3r"]
+
+    def up_only(x, elbow_up=True):
+        if not elbow_up:
+            raise ValueError("only the elbow-up branch is written")
+        return right(x, elbow_up=True)
+
+    result = grade("p1_ik", ik_3r=up_only)
+    assert result.score == 0.5, result
+    assert "IK: 5 of 10 solutions are right. The first wrong one, target [" in result.message
+    assert "elbow_up=False: ik_3r raised ValueError: only the elbow-up branch is written" in result.message
 
 
 def test_a_computed_torque_that_inverts_the_mass_matrix_is_named(master1):
