@@ -547,3 +547,19 @@ def test_assign_check_says_how_to_regenerate_what_drifted(tmp_path, capsys, monk
     ]
     assert assign.main([]) == 0 and assign.main(["--check"]) == 0
     assert capsys.readouterr().out.splitlines()[-1] == "everything is up to date"
+
+
+def test_feedback_notes_leave_out_the_checks_own_notes():
+    """A note that starts with a check's name belongs to that check's message; the others end the
+    feedback under a Notes heading, in the batch grader's files and in Canvas's alike."""
+    spec = json.loads(SPEC.read_text(encoding="utf-8"))
+    row = {
+        "status": "graded",
+        "scores": dict.fromkeys(CHECKS, 0.0),
+        "messages": dict.fromkeys(CHECKS, "wrong"),
+        "notes": ["p1_ik: the probe's own detail", "this notebook wrote files: notes.txt"],
+    }
+    assert batch.notes_block(row, spec) == ["", "Notes:", "- this notebook wrote files: notes.txt"]
+    assert batch.feedback_text("Smith, Bob", spec, row).endswith("\nNotes:\n- this notebook wrote files: notes.txt\n")
+    assert batch.notes_block(row | {"notes": ["p1_ik: the probe's own detail"]}, spec) == []
+    assert "Notes:" not in batch.feedback_text("Smith, Bob", spec, row | {"notes": []})

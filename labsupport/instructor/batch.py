@@ -136,10 +136,15 @@ def feedback_text(name: str, spec: dict, row: dict) -> str:
         lines.append(
             f"- {c['name']} ({'-' if got is None else f'{got:g}'} / {float(c['points']):g}): {clean_text(msg)}"
         )
-    notes = [n for n in row["notes"] if not any(n.startswith(c["name"] + ":") for c in spec["checks"])]
-    if notes:
-        lines += ["", "Notes:"] + [f"- {clean_text(n)}" for n in notes]
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + notes_block(row, spec)) + "\n"
+
+
+def notes_block(row: dict, spec: dict) -> list[str]:
+    """The lines that end a feedback file: the row's notes that belong to no check (a note that
+    starts with a check's name, ``"p1_ik: ..."``, is that check's, and its message says it), under
+    a "Notes:" heading; none when there are none."""
+    notes = [n for n in row.get("notes", []) if not any(n.startswith(c["name"] + ":") for c in spec["checks"])]
+    return ["", "Notes:"] + [f"- {clean_text(n)}" for n in notes] if notes else []
 
 
 def _grade_row(payload, spec: dict, seed: int, layout, unsafe_root, budget: judge.Budget) -> dict:

@@ -44,7 +44,7 @@ from functools import partial
 from pathlib import Path
 
 from labsupport.instructor.assign import chosen_spec, load_spec, problem_arguments, seed_argument
-from labsupport.instructor.batch import check_compare_with, compare_with_argument, run_batch
+from labsupport.instructor.batch import check_compare_with, compare_with_argument, notes_block, run_batch
 from labsupport.instructor.gradebook import (
     Gradebook,
     choose_column,
@@ -346,10 +346,7 @@ def feedback_text(
         shown = "-" if got is None else format_score(float(got))
         message = clean_text(row.get("messages", {}).get(c["name"], "not graded"))
         lines.append(f"- {c['name']} ({shown} / {format_score(float(c['points']))}): {message}")
-    notes = [n for n in row.get("notes", []) if not any(n.startswith(c["name"] + ":") for c in spec["checks"])]
-    if notes:
-        lines += ["", "Notes:"] + [f"- {clean_text(n)}" for n in notes]
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + notes_block(row, spec)) + "\n"
 
 
 def _write_feedback_zip(out: Path, result: CanvasResult) -> None:
