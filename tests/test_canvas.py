@@ -618,6 +618,30 @@ def test_a_damaged_notebook_is_reported_not_graded(tmp_path):
     assert any("damaged in the zip" in m for m in result.not_scored)
 
 
+def test_an_export_with_split_names_is_read_and_filled_alike(tmp_path):
+    """Canvas's export option "show first and last names" begins the header LastName, FirstName,
+    ID: the ID is the third column, the name is both cells, and the import keeps the layout."""
+    export = tmp_path / "export.csv"
+    export.write_text(
+        "LastName,FirstName,ID,SIS Login ID,Section,Problem 1: Reaching (4101),Current Score\n"
+        "    Points Possible,,,,,20.00,(read only)\n"
+        "Smith,Bob,1234,bsmith,Section A,,90.00\n"
+        "García,Ana,1235,agarcia,Section B,12.00,80.00\n",
+        encoding="utf-8",
+    )
+    book = gradebook.read_gradebook(export)
+    assert book.student_rows == {1234: 2, 1235: 3}
+    assert (book.student_name(1234), book.student_name(1235)) == ("Smith, Bob", "García, Ana")
+    column = gradebook.choose_column(book, "problem1")
+    assert book.points_possible(column) == 20.0
+    assert gradebook.fill_column(book, column, {1234: "20", 1235: "15"}).splitlines() == [
+        "LastName,FirstName,ID,SIS Login ID,Section,Problem 1: Reaching (4101)",
+        "    Points Possible,,,,,20.00",
+        "Smith,Bob,1234,bsmith,Section A,20",
+        "García,Ana,1235,agarcia,Section B,15",
+    ]
+
+
 def test_a_csv_that_is_not_a_canvas_gradebook_says_so(tmp_path):
     other = tmp_path / "grades.csv"
     other.write_text("name,score\nBob,3\n", encoding="utf-8")
