@@ -642,6 +642,29 @@ def test_an_export_with_split_names_is_read_and_filled_alike(tmp_path):
     ]
 
 
+def test_a_notes_cell_of_several_lines_stays_in_its_students_record(tmp_path):
+    """The Notes column is free text: a quoted cell with a line break is one record, and the
+    import leaves the rest of that record alone; a column worth 1 point scales 10 to 1."""
+    export = tmp_path / "export.csv"
+    export.write_text(
+        "Student,ID,SIS Login ID,Section,Notes,Problem 1: Reaching (4101)\n"
+        "    Points Possible,,,,,1.00\n"
+        '"Smith, Bob",1234,bsmith,Section A,"missed the lab,\nmade it up",\n'
+        '"García, Ana",1235,agarcia,Section B,,0.50\n',
+        encoding="utf-8",
+    )
+    book = gradebook.read_gradebook(export)
+    assert book.student_rows == {1234: 2, 1235: 3}
+    column = gradebook.choose_column(book, "problem1")
+    assert book.points_possible(column) == 1.0
+    score = gradebook.format_score(gradebook.scaled_score(10.0, 10.0, book.points_possible(column)))
+    assert gradebook.fill_column(book, column, {1234: score}).splitlines() == [
+        "Student,ID,SIS Login ID,Section,Problem 1: Reaching (4101)",
+        "    Points Possible,,,,1.00",
+        '"Smith, Bob",1234,bsmith,Section A,1',
+    ]
+
+
 def test_a_csv_that_is_not_a_canvas_gradebook_says_so(tmp_path):
     other = tmp_path / "grades.csv"
     other.write_text("name,score\nBob,3\n", encoding="utf-8")

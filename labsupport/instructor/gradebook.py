@@ -142,7 +142,7 @@ def detect_delimiter(lines: list[str]) -> str:
     the same, larger number of fields."""
     counts = {}
     for sep in (";", ","):
-        sizes = {len(next(csv.reader([line], delimiter=sep), [])) for line in lines}
+        sizes = {len(next(csv.reader(io.StringIO(line), delimiter=sep), [])) for line in lines}
         counts[sep] = sizes.pop() if len(sizes) == 1 else 0
     return ";" if counts[";"] > counts[","] else ","
 
