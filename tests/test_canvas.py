@@ -618,22 +618,30 @@ def test_a_damaged_notebook_is_reported_not_graded(tmp_path):
     assert any("damaged in the zip" in m for m in result.not_scored)
 
 
+def _smith_and_garcia(tmp_path: Path, text: str, points: float):
+    """An export of Smith (ID 1234, row 2) and García (1235, row 3), read; and its Problem 1
+    column, worth ``points``."""
+    export = tmp_path / "export.csv"
+    export.write_text(text, encoding="utf-8")
+    book = gradebook.read_gradebook(export)
+    assert book.student_rows == {1234: 2, 1235: 3}
+    column = gradebook.choose_column(book, "problem1")
+    assert book.points_possible(column) == points
+    return book, column
+
+
 def test_an_export_with_split_names_is_read_and_filled_alike(tmp_path):
     """Canvas's export option "show first and last names" begins the header LastName, FirstName,
     ID: the ID is the third column, the name is both cells, and the import keeps the layout."""
-    export = tmp_path / "export.csv"
-    export.write_text(
+    book, column = _smith_and_garcia(
+        tmp_path,
         "LastName,FirstName,ID,SIS Login ID,Section,Problem 1: Reaching (4101),Current Score\n"
         "    Points Possible,,,,,20.00,(read only)\n"
         "Smith,Bob,1234,bsmith,Section A,,90.00\n"
         "García,Ana,1235,agarcia,Section B,12.00,80.00\n",
-        encoding="utf-8",
+        points=20.0,
     )
-    book = gradebook.read_gradebook(export)
-    assert book.student_rows == {1234: 2, 1235: 3}
     assert (book.student_name(1234), book.student_name(1235)) == ("Smith, Bob", "García, Ana")
-    column = gradebook.choose_column(book, "problem1")
-    assert book.points_possible(column) == 20.0
     assert gradebook.fill_column(book, column, {1234: "20", 1235: "15"}).splitlines() == [
         "LastName,FirstName,ID,SIS Login ID,Section,Problem 1: Reaching (4101)",
         "    Points Possible,,,,,20.00",
@@ -645,18 +653,14 @@ def test_an_export_with_split_names_is_read_and_filled_alike(tmp_path):
 def test_a_notes_cell_of_several_lines_stays_in_its_students_record(tmp_path):
     """The Notes column is free text: a quoted cell with a line break is one record, and the
     import leaves the rest of that record alone; a column worth 1 point scales 10 to 1."""
-    export = tmp_path / "export.csv"
-    export.write_text(
+    book, column = _smith_and_garcia(
+        tmp_path,
         "Student,ID,SIS Login ID,Section,Notes,Problem 1: Reaching (4101)\n"
         "    Points Possible,,,,,1.00\n"
         '"Smith, Bob",1234,bsmith,Section A,"missed the lab,\nmade it up",\n'
         '"García, Ana",1235,agarcia,Section B,,0.50\n',
-        encoding="utf-8",
+        points=1.0,
     )
-    book = gradebook.read_gradebook(export)
-    assert book.student_rows == {1234: 2, 1235: 3}
-    column = gradebook.choose_column(book, "problem1")
-    assert book.points_possible(column) == 1.0
     score = gradebook.format_score(gradebook.scaled_score(10.0, 10.0, book.points_possible(column)))
     assert gradebook.fill_column(book, column, {1234: score}).splitlines() == [
         "Student,ID,SIS Login ID,Section,Problem 1: Reaching (4101)",
