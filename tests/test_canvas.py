@@ -686,6 +686,13 @@ def test_a_csv_that_is_not_a_canvas_gradebook_says_so(tmp_path):
     latin.write_bytes(EXPORT.read_text(encoding="utf-8").encode("latin-1"))
     with pytest.raises(ValueError, match="not UTF-8"):
         gradebook.read_gradebook(latin)
+    unclosed = tmp_path / "unclosed.csv"  # a cell's closing quote lost in an edit by hand
+    unclosed.write_text(
+        'Student,ID,SIS Login ID,Section,Problem 1 (4101)\n"Smith, Bob,1234,bsmith,A,\n"García, Ana",1235,a,B,\n',
+        encoding="utf-8",
+    )
+    with pytest.raises(ValueError, match=r"gradebook export: a quote \(\"\) opened in row 2 is never closed"):
+        gradebook.read_gradebook(unclosed)
 
 
 def test_a_column_that_does_not_exist_lists_the_assignment_columns(tmp_path):

@@ -166,6 +166,8 @@ def read_gradebook(path: Path) -> Gradebook:
     records = split_records(text[len(bom) :])
     if not records:
         raise _not_a_gradebook(path, "it is empty")
+    if text.count('"') % 2:  # the record whose quote is never closed runs to the end: it is the last
+        raise _not_a_gradebook(path, f'a quote (") opened in row {len(records)} is never closed')
     delimiter = detect_delimiter([r.rstrip("\r\n") for r in records[:3]])
     rows = [next(csv.reader(io.StringIO(r), delimiter=delimiter), []) for r in records]
     header = [h.strip() for h in rows[0]]
