@@ -16,6 +16,7 @@ import os
 import stat
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import nbformat
@@ -564,3 +565,29 @@ def test_feedback_notes_leave_out_the_checks_own_notes():
     assert batch.feedback_text("Smith, Bob", spec, row).endswith("\nNotes:\n- this notebook wrote files: notes.txt\n")
     assert batch.notes_block(row | {"notes": ["p1_ik: the probe's own detail"]}, spec) == []
     assert "Notes:" not in batch.feedback_text("Smith, Bob", spec, row | {"notes": []})
+
+
+def test_a_zip_holding_a_symbolic_link_is_refused(tmp_path):
+    """Unpacked, a link could point the grader at any file of the machine; Canvas never writes one."""
+    path = tmp_path / "links.zip"
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("smithbob_1234_50001_problem1_reaching.ipynb", b"{}")
+        link = zipfile.ZipInfo("leekim_1238_50005_problem1_reaching.ipynb")
+        link.external_attr = (stat.S_IFLNK | 0o777) << 16
+        zf.writestr(link, "/etc/passwd")
+    with zipfile.ZipFile(path) as zf, pytest.raises(ValueError, match="symbolic link 'leekim_1238_50005_problem1"):
+        submissions.safe_zip_entries(zf)
+    with zipfile.ZipFile(path) as zf:  # the same entry as a plain file is fine
+        zf.infolist()[1].external_attr = (stat.S_IFREG | 0o644) << 16
+        assert len(submissions.safe_zip_entries(zf)) == 2
+
+
+def test_a_zip_made_by_hand_gives_each_notebook_and_nothing_else(tmp_path):
+    """Entries not named as Canvas names them are each a notebook of their own, when they are one."""
+    path = tmp_path / "by_hand.zip"
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("ana.ipynb", b'{"cells": []}')
+        zf.writestr("bob/Problem1.IPYNB", b'{"cells": []}')
+        zf.writestr("notes.txt", b"not a notebook")
+    notebooks, left_out = submissions.zip_notebooks(path, json.loads(SPEC.read_text(encoding="utf-8")))
+    assert sorted(notebooks) == ["ana.ipynb", "bob/Problem1.IPYNB"] and left_out == []
