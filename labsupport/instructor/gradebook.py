@@ -110,7 +110,11 @@ def decimal_point(text: str) -> str:
 
 
 def split_records(text: str) -> list[str]:
-    """Cut CSV text into records, each with its line ending; a newline inside quotes stays inside."""
+    """Cut CSV text into records, each with its line ending; a newline inside quotes stays inside.
+
+    Raises:
+        ValueError: a quote is never closed (the record it opens runs to the end: the last one).
+    """
     records, start, quoted = [], 0, False
     for i, c in enumerate(text):
         if c == '"':
@@ -120,6 +124,8 @@ def split_records(text: str) -> list[str]:
             start = i + 1
     if start < len(text):
         records.append(text[start:])
+    if quoted:
+        raise ValueError(f'a quote (") opened in row {len(records)} is never closed')
     return records
 
 
@@ -163,11 +169,12 @@ def read_gradebook(path: Path) -> Gradebook:
     except UnicodeDecodeError:
         raise _not_a_gradebook(path, "it is not UTF-8 text (re-saved by a spreadsheet?)") from None
     bom = "\ufeff" if text.startswith("\ufeff") else ""
-    records = split_records(text[len(bom) :])
+    try:
+        records = split_records(text[len(bom) :])
+    except ValueError as err:
+        raise _not_a_gradebook(path, str(err)) from None
     if not records:
         raise _not_a_gradebook(path, "it is empty")
-    if text.count('"') % 2:  # the record whose quote is never closed runs to the end: it is the last
-        raise _not_a_gradebook(path, f'a quote (") opened in row {len(records)} is never closed')
     delimiter = detect_delimiter([r.rstrip("\r\n") for r in records[:3]])
     rows = [next(csv.reader(io.StringIO(r), delimiter=delimiter), []) for r in records]
     header = [h.strip() for h in rows[0]]
