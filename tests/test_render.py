@@ -22,8 +22,23 @@ import pytest
 
 from labsupport import gl, plots, render
 
-#: Encoding a video needs the ffmpeg program (.ci/setup installs it; a GPU image may lack it).
-needs_ffmpeg = pytest.mark.skipif(shutil.which("ffmpeg") is None, reason="ffmpeg is not installed")
+
+def ffmpeg_program() -> str | None:
+    """The ffmpeg that labsupport can encode video with: the PATH's, else the one that the optional
+    package imageio-ffmpeg ships (what a Colab student gets with `%pip install imageio-ffmpeg`)."""
+    if on_path := shutil.which("ffmpeg"):
+        return on_path
+    try:
+        import imageio_ffmpeg
+
+        return imageio_ffmpeg.get_ffmpeg_exe()
+    except (ImportError, RuntimeError):
+        return None
+
+
+#: The ffmpeg to encode with (.ci/setup installs one; a GPU image may have only imageio-ffmpeg's).
+FFMPEG = ffmpeg_program()
+needs_ffmpeg = pytest.mark.skipif(FFMPEG is None, reason="no ffmpeg, on the PATH or from imageio-ffmpeg")
 
 SCRIPT = r"""
 import json, os, sys
@@ -700,7 +715,7 @@ def test_without_ffmpeg_the_videos_say_how_to_get_it_and_the_notebook_goes_on(no
 
 @needs_ffmpeg
 def test_the_ffmpeg_of_imageio_ffmpeg_is_used_when_none_is_on_the_path(no_ffmpeg, monkeypatch):
-    bundled = shutil.which("ffmpeg")  # stands in for the program that imageio-ffmpeg ships
+    bundled = FFMPEG  # stands in for the program that imageio-ffmpeg ships
     monkeypatch.setitem(sys.modules, "imageio_ffmpeg", types.SimpleNamespace(get_ffmpeg_exe=lambda: bundled))
     frames = np.random.default_rng(1).integers(0, 255, (4, 48, 64, 3), dtype=np.uint8)
     html = render.video_html(frames, fps=4, description="Random noise, in four small frames.")
