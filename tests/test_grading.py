@@ -359,6 +359,7 @@ def test_code_built_at_run_time_is_named_and_code_as_written_is_not():
         (5, "import builtins\nbuiltins.eval(code)"),
         (6, "import marshal\nf = marshal.loads(data)"),
         (7, "def broken(:"),
+        (8, "handlers[0](x)\nmake_law()(x)\nlaws.pd.torque(x)\nexec"),  # calls of a subscript, a call, a chain
     ]
     assert judge.code_built_at_run_time(cells) == [
         "cell 3 ('import base64, zlib')",
@@ -373,6 +374,10 @@ def test_a_notebook_with_more_code_than_the_grader_parses_is_noted_unparsed(monk
     submission's limits; past MAX_CODE_CHARS the scan is not made, and the row says so."""
     below = [(0, "x = 1\n" * 30_000), (4, "exec(code)")]  # 180,010 characters: scanned
     assert judge.run_time_code_note(below).startswith("cell 5 ('exec(code)') runs code built while the notebook runs")
+    at_bound = [(0, "#" * (judge.MAX_CODE_CHARS - 10)), (4, "exec(code)")]  # exactly the bound: still scanned
+    assert judge.run_time_code_note(at_bound).startswith("cell 5 ('exec(code)') runs")
+    past = [(0, "#" * (judge.MAX_CODE_CHARS - 9)), (4, "exec(code)")]
+    assert judge.run_time_code_note(past).startswith("the notebook holds 200,001 characters of code")
     assert judge.run_time_code_note([(0, "x = 1\n")]) is None
 
     def no_parse(*args, **kwargs):
@@ -791,6 +796,20 @@ def test_a_notebook_of_the_older_format_is_read_like_a_current_one():
     assert [src for _, src in read_cells(older)] == code
     with pytest.raises(ValueError, match="nested too deeply"):
         read_cells(b"[" * 100000 + b"]" * 100000)
+
+
+@pytest.mark.parametrize(
+    "text",
+    [b"[]", b"{}", b'{"cells": {"0": {}}}', b'"cells"', b'{"nbformat": 3, "worksheets": {}}', b"null"],
+    ids=["a list", "no cells", "cells not a list", "a string", "format 3 without a list of worksheets", "null"],
+)
+def test_json_that_is_no_notebook_is_refused_with_its_reason(text):
+    """Valid JSON without a list of cells (what a renamed file or a hand-edited notebook can be)
+    is refused as such, never with a Python error from inside the reader."""
+    from labsupport.instructor.judge import read_cells
+
+    with pytest.raises(ValueError, match=r"^not a valid notebook: no list of cells$"):
+        read_cells(text)
 
 
 def test_a_stubs_source_copied_with_inspect_and_run_with_exec_still_refuses(tmp_path, monkeypatch):
