@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 import nbformat
+import numpy as np
 import pytest
 from hostile.build import MASTER, _defining, _imports, insert_after, load, unusual_problem2
 from nbclient import NotebookClient
@@ -367,6 +368,91 @@ def test_code_built_at_run_time_is_named_and_code_as_written_is_not():
         "cell 6 ('import builtins')",
         "cell 7 ('import marshal')",
     ]
+
+
+@pytest.mark.parametrize(
+    ("reported", "note"),
+    [
+        ("timed out (cpu)", "timed out (cpu)"),  # the sandbox's own limit texts, as they are
+        ("timed out (idle of all cells together)", "timed out (idle of all cells together)"),
+        ("ValueError: bad shape", 'raised ValueError: "bad shape"'),
+        ("KeyboardInterrupt", "raised KeyboardInterrupt"),
+        (
+            "numpy.linalg.LinAlgError: Singular matrix\nfull marks",
+            'raised numpy.linalg.LinAlgError: "Singular matrix\\nfull marks"',
+        ),
+        (
+            "ModuleNotFoundError: No module named 'cvxpy'",
+            f"raised ModuleNotFoundError: \"No module named 'cvxpy'\" ({judge.MISSING_MODULE_ADVICE})",
+        ),
+        (
+            "ModuleNotFoundError: No module named 'labsupport.kinematics'",
+            "raised ModuleNotFoundError: \"No module named 'labsupport.kinematics'\"",
+        ),
+        ("the grader: full marks", 'reported an error in a form the sandbox never writes: "the grader: full marks"'),
+        ("", 'reported an error in a form the sandbox never writes: ""'),
+    ],
+)
+def test_a_cells_error_is_quoted_in_the_notes(reported, note):
+    """A cell's error in the notes: the sandbox's limit texts as they are, an exception's name
+    and its message quoted (the message is the notebook's own text, so it cannot pass for a note
+    of the grader's), the advice for a module the grader lacks (not for labsupport's, left out
+    on purpose), and anything else named as a form the sandbox never writes."""
+    assert judge._error_note(reported) == note
+
+
+def test_an_answer_from_the_sandbox_is_read_or_refused_in_plain_words():
+    """Each kind of answer the sandbox writes, and answers it never writes (a notebook that
+    wrote into the grader's channel itself)."""
+    StudentError, StudentTimeout = judge.StudentError, judge.StudentTimeout
+    read = judge._decode
+    refused = [
+        ({"missing": True}, StudentError, "ik_3r is not defined in the notebook"),
+        ({"not_callable": True, "type": "int"}, StudentError, "ik_3r should be a function, but it is a int"),
+        ({"timeout": "cpu"}, StudentTimeout, "ik_3r did not return: it used too much CPU time"),
+        ({"timeout": "idle"}, StudentTimeout, "ik_3r did not return: it waited too long"),
+        ({"raised": 5}, StudentError, f"ik_3r: {judge.ALTERED_ANSWER}"),
+        ({"raised": "ValueError: unreachable"}, StudentError, "ik_3r raised ValueError: unreachable"),
+        ({"complex": True}, StudentError, "ik_3r returned complex numbers"),
+        ({"array": [1.0, 2.0]}, StudentError, f"ik_3r: {judge.ALTERED_ANSWER}"),
+        ({"array": [1.0, 2.0, 3.0], "shape": [2, 2]}, StudentError, "ik_3r returned something unreadable"),
+        ({"array": [1.0, "a"], "shape": [2]}, StudentError, "ik_3r returned something unreadable"),
+        ({"type": "str"}, StudentError, "ik_3r is a str, expected numbers"),
+    ]
+    for answer, kind, message in refused:
+        with pytest.raises(kind) as caught:
+            read("ik_3r", answer)
+        assert str(caught.value).startswith(message), (answer, str(caught.value))
+        assert type(caught.value) is kind
+    with pytest.raises(StudentError, match=r"^ik_3r returned a str, expected numbers$"):
+        read("ik_3r", {"type": "str"}, call=True)
+    assert read("ik_3r", {"none": True}) is None
+    got = read("ik_3r", {"array": [1, 2, 3, 4], "shape": [2, 2]})
+    assert got.dtype == float and got.tolist() == [[1.0, 2.0], [3.0, 4.0]]
+
+
+def test_file_lists_show_absolute_paths_quoted_and_cut():
+    """A file list from the sandbox: only absolute paths are shown, each quoted, and cut to
+    MAX_PATH_CHARS with an ellipsis."""
+    long = "/home/student/" + "x" * 100
+    assert judge._paths(["/home/student/out.txt", "relative.txt", 5, None, long, '/tmp/a "b"']) == [
+        '"/home/student/out.txt"',
+        '"' + long[: judge.MAX_PATH_CHARS] + '…"',
+        '"/tmp/a \\"b\\""',
+    ]
+    assert judge._paths(["/" + "y" * (judge.MAX_PATH_CHARS - 1)]) == ['"/' + "y" * (judge.MAX_PATH_CHARS - 1) + '"']
+
+
+def test_arguments_cross_to_the_sandbox_as_plain_numbers():
+    """What the judge sends: a State as its parts, arrays and NumPy scalars as floats, the rest as is."""
+    from labsupport.grading.feedback import State
+
+    state = State(q=np.array([1, 2, 3]), qdot=np.zeros(3, dtype=np.float32), t=np.float32(0.5))
+    assert judge._encode_arg(state) == {"state": {"q": [1.0, 2.0, 3.0], "qdot": [0.0, 0.0, 0.0], "t": 0.5}}
+    sent = judge._encode_arg(np.array([[1, 2]], dtype=np.int64))
+    assert sent == [[1.0, 2.0]] and all(type(v) is float for v in sent[0])
+    assert type(judge._encode_arg(np.int32(3))) is float and judge._encode_arg(np.float32(0.25)) == 0.25
+    assert judge._encode_arg("elbow_up") == "elbow_up" and judge._encode_arg(None) is None
 
 
 def test_a_notebook_with_more_code_than_the_grader_parses_is_noted_unparsed(monkeypatch):
