@@ -93,7 +93,9 @@ def make_renderer(model: mujoco.MjModel, width: int = 320, height: int = 240) ->
     """An offscreen :class:`mujoco.Renderer`, or :class:`RenderingUnavailable` with advice.
 
     Raises:
-        ValueError: if the size exceeds the model's offscreen buffer (``<global offwidth>``).
+        ValueError: if the size exceeds the model's offscreen buffer
+            (``model.vis.global_.offwidth`` and ``offheight``, ``<global offwidth offheight>`` in
+            MJCF); the message says how to enlarge it.
     """
     if os.environ.get(BATCH_ENV):  # a graded notebook's pictures would only spend its time limits
         raise RenderingUnavailable("pictures and videos are not made while the batch grader runs the notebook")
@@ -103,7 +105,8 @@ def make_renderer(model: mujoco.MjModel, width: int = 320, height: int = 240) ->
         raise ValueError(
             f"{validate.short(width)} x {validate.short(height)} is larger than the model's offscreen buffer "
             f"({model.vis.global_.offwidth}x{model.vis.global_.offheight}); "
-            "pick a smaller size or raise <visual><global offwidth offheight>"
+            "pick a smaller size, or enlarge the buffer before rendering: set model.vis.global_.offwidth and "
+            "model.vis.global_.offheight (in the model file, <visual><global offwidth offheight>)"
         )
     backend = os.environ.get("MUJOCO_GL")
     if not backend and gl.on_linux():  # on Linux, MuJoCo's default (GLFW) needs a display

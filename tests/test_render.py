@@ -468,7 +468,35 @@ def test_renderer_size_is_checked():
         render.make_renderer(model, width=4000, height=3000)
     with pytest.raises(ValueError, match=r"^an integer of 401 digits x 240 is larger than") as caught:
         render.make_renderer(model, width=10**400)  # named by its size, not printed digit by digit
-    assert len(str(caught.value)) < 200
+    assert len(str(caught.value)) < 300
+
+
+BIG_FRAME_SCRIPT = r"""
+import json
+import labsupport
+from labsupport import render
+from labsupport.plants import load_model
+model, data = load_model("planar_2r")
+try:
+    render.render_picture(model, data, width=800, height=600)
+except ValueError as err:
+    refused = str(err)
+model.vis.global_.offwidth, model.vis.global_.offheight = 800, 600  # as the message says
+print(json.dumps([refused, list(render.render_picture(model, data, width=800, height=600).shape)]))
+"""
+
+
+@pytest.mark.skipif(not gl.egl_works(), reason="EGL cannot open a display on this machine")
+def test_a_frame_larger_than_the_buffer_is_refused_with_advice_that_works(tmp_path):
+    """800 x 600 is past the 2R model's 640 x 480 buffer: refused, with the attributes to set;
+    set as the message says, the same picture renders."""
+    refused, shape = _run_script(tmp_path, BIG_FRAME_SCRIPT, MUJOCO_GL="egl")
+    assert refused == (
+        "800 x 600 is larger than the model's offscreen buffer (640x480); pick a smaller size, or enlarge the "
+        "buffer before rendering: set model.vis.global_.offwidth and model.vis.global_.offheight (in the model "
+        "file, <visual><global offwidth offheight>)"
+    )
+    assert shape == [600, 800, 3]
 
 
 @pytest.fixture
