@@ -124,6 +124,13 @@ def test_every_notebook_gets_a_row_whatever_the_case_of_its_extension(tmp_path, 
         "bell\x07.ipynb": "bell_.txt",
         "two lines.ipynb": "two lines.txt",
     }
+    # a third and a fourth file of the same stem take the next free numbers, in any case
+    assert batch.feedback_names(["a.ipynb", "A.ipynb", "a.IPYNB", "A.Ipynb"]) == {
+        "a.ipynb": "a.txt",
+        "A.ipynb": "A-2.txt",
+        "a.IPYNB": "a-3.txt",
+        "A.Ipynb": "A-4.txt",
+    }
     # a folder holding only an upper-case notebook is graded, not refused as holding none
     upper = _folder(tmp_path / "upper", {"only.IPYNB": b"not json"})
     batch.main(_argv(upper, tmp_path / "out_upper"))

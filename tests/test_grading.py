@@ -677,6 +677,31 @@ def test_the_batch_command_says_what_is_wrong_with_its_arguments(tmp_path, capsy
     assert not (tmp_path / "out").exists()
 
 
+def test_the_batch_commands_defaults_and_the_least_it_accepts(tmp_path, monkeypatch, capsys):
+    """The defaults that the help text promises reach the grader (a 900 s backstop, a job per
+    CPU, a fresh seed, the sandbox); one job and a backstop under a second are accepted, and
+    --out must be given."""
+    from labsupport.instructor import batch
+
+    subs = _submissions(tmp_path / "subs", ["master.ipynb"])
+    asked = []
+    monkeypatch.setattr(batch, "run_batch", lambda *args, **kwargs: asked.append((args, kwargs)))
+    batch_main(["--problem", "problem1", str(subs), "--out", str(tmp_path / "out")])
+    (folder, spec, out, jobs, timeout), options = asked.pop()
+    assert (folder, out, jobs, timeout) == (subs, tmp_path / "out", None, 900.0) and spec.name == "problem1.json"
+    assert options == {"seed": None, "unsafe_no_sandbox": False, "compare_with": []}
+    batch_main(["--problem", "problem1", str(subs), "--out", str(tmp_path / "out"), "--jobs", "1", "--timeout", "0.5"])
+    assert asked.pop()[0][3:] == (1, 0.5)
+    for argv, words in (
+        (["--problem", "problem1", str(subs)], "the following arguments are required: --out"),
+        (["--problem", "problem1", str(subs), "--out", str(tmp_path / "out"), "--timeout", "0"], "--timeout must be"),
+    ):
+        with pytest.raises(SystemExit) as stop:
+            batch_main(argv)
+        assert stop.value.code == 2 and words in capsys.readouterr().err
+    assert asked == []
+
+
 def test_unsafe_opt_out_says_so_in_every_row(tmp_path):
     subs = _submissions(tmp_path / "subs", ["master.ipynb", "invalid_json.ipynb"])
     proc = _batch_cli("problem1", subs, tmp_path / "out", "--unsafe-no-sandbox", "--seed", str(SEED))
