@@ -574,6 +574,21 @@ def test_feedback_notes_leave_out_the_checks_own_notes():
     assert "Notes:" not in batch.feedback_text("Smith, Bob", spec, row | {"notes": []})
 
 
+def test_an_unscored_rows_feedback_gives_each_check_its_reason():
+    """A row the grader could not score (it failed on it, here without the sandbox) shows no total,
+    and each check says why: the row's first note, its reason; the notes follow in full."""
+    spec = json.loads(SPEC.read_text(encoding="utf-8"))
+    reason = "the grader failed: [Errno 28] No space left on device"
+    row = {"status": "error", "scores": {}, "messages": {}, "notes": [reason, batch.UNSAFE_NOTE]}
+    lines = batch.feedback_text("broken.ipynb", spec, row).splitlines()
+    maximum = sum(float(c["points"]) for c in spec["checks"])
+    assert lines[2] == f"Score: not recorded / {maximum:g}   (status: error)"
+    assert lines[4 : 4 + len(CHECKS)] == [
+        f"- {c['name']} (- / {float(c['points']):g}): not graded: {reason}" for c in spec["checks"]
+    ]
+    assert lines[-3:] == ["Notes:", f"- {reason}", f"- {batch.UNSAFE_NOTE}"]
+
+
 def test_a_zip_holding_a_symbolic_link_is_refused(tmp_path):
     """Unpacked, a link could point the grader at any file of the machine; Canvas never writes one."""
     path = tmp_path / "links.zip"
