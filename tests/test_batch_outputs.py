@@ -576,7 +576,8 @@ def test_feedback_notes_leave_out_the_checks_own_notes():
 
 def test_an_unscored_rows_feedback_gives_each_check_its_reason():
     """A row the grader could not score (it failed on it, here without the sandbox) shows no total,
-    and each check says why: the row's first note, its reason; the notes follow in full."""
+    and each check says why: the row's first note, its reason; the notes follow in full. A row
+    that could not be read scores zero."""
     spec = json.loads(SPEC.read_text(encoding="utf-8"))
     reason = "the grader failed: [Errno 28] No space left on device"
     row = {"status": "error", "scores": {}, "messages": {}, "notes": [reason, batch.UNSAFE_NOTE]}
@@ -587,6 +588,11 @@ def test_an_unscored_rows_feedback_gives_each_check_its_reason():
         f"- {c['name']} (- / {float(c['points']):g}): not graded: {reason}" for c in spec["checks"]
     ]
     assert lines[-3:] == ["Notes:", f"- {reason}", f"- {batch.UNSAFE_NOTE}"]
+    # an upload that could not be read (here an empty file) scores zero: no check adds a point
+    empty = {"status": "unreadable", "scores": {}, "messages": {}, "notes": [batch.EMPTY_FILE]}
+    lines = batch.feedback_text("empty.ipynb", spec, empty).splitlines()
+    assert lines[2] == f"Score: 0 / {maximum:g}   (status: unreadable)"
+    assert lines[4].endswith(f"not graded: {batch.EMPTY_FILE}")
 
 
 def test_a_zip_holding_a_symbolic_link_is_refused(tmp_path):
