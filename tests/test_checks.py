@@ -358,7 +358,10 @@ def test_an_object_that_fails_to_become_numbers_is_named_not_raised():
 
     result = grade("p1_pd", pd_torque=lambda *args: Weird())
     assert result.score == 0, result
-    assert "pd_torque returned a Weird that raised RuntimeError when read as numbers: not today" in result.message
+    assert (
+        "pd_torque returned a value of type Weird that raised RuntimeError when read as numbers: not today"
+        in result.message
+    )
 
 
 def test_ik_mistakes_are_named(master1):

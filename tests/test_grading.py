@@ -408,7 +408,7 @@ def test_an_answer_from_the_sandbox_is_read_or_refused_in_plain_words():
     read = judge._decode
     refused = [
         ({"missing": True}, StudentError, "ik_3r is not defined in the notebook"),
-        ({"not_callable": True, "type": "int"}, StudentError, "ik_3r should be a function, but it is a int"),
+        ({"not_callable": True, "type": "int"}, StudentError, "ik_3r should be a function, but it is of type int"),
         ({"timeout": "cpu"}, StudentTimeout, "ik_3r did not return: it used too much CPU time"),
         ({"timeout": "idle"}, StudentTimeout, "ik_3r did not return: it waited too long"),
         ({"raised": 5}, StudentError, f"ik_3r: {judge.ALTERED_ANSWER}"),
@@ -417,15 +417,17 @@ def test_an_answer_from_the_sandbox_is_read_or_refused_in_plain_words():
         ({"array": [1.0, 2.0]}, StudentError, f"ik_3r: {judge.ALTERED_ANSWER}"),
         ({"array": [1.0, 2.0, 3.0], "shape": [2, 2]}, StudentError, "ik_3r returned something unreadable"),
         ({"array": [1.0, "a"], "shape": [2]}, StudentError, "ik_3r returned something unreadable"),
-        ({"type": "str"}, StudentError, "ik_3r is a str, expected numbers"),
+        ({"type": "str"}, StudentError, "ik_3r is a value of type str, expected numbers"),
     ]
     for answer, kind, message in refused:
         with pytest.raises(kind) as caught:
             read("ik_3r", answer)
         assert str(caught.value).startswith(message), (answer, str(caught.value))
         assert type(caught.value) is kind
-    with pytest.raises(StudentError, match=r"^ik_3r returned a str, expected numbers$"):
+    with pytest.raises(StudentError, match=r"^ik_3r returned a value of type str, expected numbers$"):
         read("ik_3r", {"type": "str"}, call=True)
+    with pytest.raises(StudentError, match=r"^ik_3r returned not numbers, expected numbers$"):
+        read("ik_3r", {}, call=True)  # no type named: an answer the sandbox never writes
     assert read("ik_3r", {"none": True}) is None
     got = read("ik_3r", {"array": [1, 2, 3, 4], "shape": [2, 2]})
     assert got.dtype == float and got.tolist() == [[1.0, 2.0], [3.0, 4.0]]

@@ -269,7 +269,7 @@ class DirectProbe(Probe):
     def call(self, fname: str, *args, **kwargs):
         fn = self._lookup(fname)
         if not callable(fn):
-            raise StudentError(f"{fname} should be a function, but it is a {type(fn).__name__}")
+            raise StudentError(f"{fname} should be a function, but it is of type {type(fn).__name__}")
 
         (expanded, handed), kwargs = self._expand(args), copy.deepcopy(kwargs)
 
@@ -394,5 +394,6 @@ def _plain(value, what: str):
         return value
     except Exception as err:  # the student's object may raise anything while it is converted
         raise StudentError(
-            f"{what} a {type(value).__name__} that raised {type(err).__name__} when read as numbers: {err}"
+            f"{what} a value of type {type(value).__name__} that raised {type(err).__name__} "
+            f"when read as numbers: {err}"
         ) from None

@@ -442,7 +442,7 @@ def _decode(name: str, answer: dict, call: bool = False):
             f"{name} is not defined in the notebook (its cell was deleted, renamed or failed, or never ran)"
         )
     if answer.get("not_callable"):
-        raise StudentError(f"{name} should be a function, but it is a {answer.get('type')}")
+        raise StudentError(f"{name} should be a function, but it is of type {answer.get('type')}")
     if answer.get("timeout"):
         why = "used too much CPU time" if answer["timeout"] == "cpu" else "waited too long"
         raise StudentTimeout(f"{name} did not return: it {why}")
@@ -462,7 +462,8 @@ def _decode(name: str, answer: dict, call: bool = False):
         except (TypeError, ValueError):
             raise StudentError(f"{name} returned something unreadable") from None
     what = "returned" if call else "is"
-    raise StudentError(f"{name} {what} a {answer.get('type', 'value')}, expected numbers")
+    kind = answer.get("type")
+    raise StudentError(f"{name} {what} {f'a value of type {kind}' if kind else 'not numbers'}, expected numbers")
 
 
 # ---------------------------------------------------------------------------------------------
