@@ -734,7 +734,8 @@ def test_a_bubblewrap_that_cannot_start_is_quoted_with_each_cause_and_its_remedy
         assert remedy in said
 
 
-def test_the_sandbox_sees_no_checkout_and_no_forbidden_module(tmp_path):
+def test_the_sandbox_sees_no_checkout_and_no_forbidden_module(tmp_path, monkeypatch):
+    monkeypatch.setenv("CANVAS_API_TOKEN", "the instructor's secret")  # the grader's environment stays outside
     layout = isolation.prepare(tmp_path / "layout")
     probe = (
         "import sys, os, labsupport, labsupport.controllers as c\n"
@@ -746,6 +747,7 @@ def test_the_sandbox_sees_no_checkout_and_no_forbidden_module(tmp_path):
         # a star import used to define nothing (NameError at the call, not the rule's reason)
         "from labsupport.controllers.joint_space import *\n"
         "try:\n    ct_joint_torque()\nexcept RuntimeError as e:\n    print(e)\n"
+        "print(' '.join(sorted(os.environ)))\n"
     )
     proc = subprocess.run(
         isolation.command(layout, [layout.python, "-c", probe]), capture_output=True, text=True, timeout=60
@@ -760,6 +762,7 @@ def test_the_sandbox_sees_no_checkout_and_no_forbidden_module(tmp_path):
     assert "is off limits in a Problem TODO" in lines[2]
     assert lines[3].startswith("no network")
     assert "labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO" in lines[4]
+    assert set(lines[5].split()) <= {name for name, _ in layout.env} | {"PWD", "LC_CTYPE"}  # the layout's, no more
 
 
 def test_the_sandbox_can_fill_only_its_capped_scratch_space(tmp_path):
