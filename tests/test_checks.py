@@ -1772,6 +1772,8 @@ def test_an_ik_with_one_wrong_branch_is_told_which_target_and_branch(master1):
     assert str(result).startswith("◐ [p1_ik] (50 % of this check's points) IK: 5 of 10")
     missing = grade("p1_ik")
     assert missing.message == "IK: ik_3r is not defined: run its cell (above) first, or restore it if it was deleted"
+    number = grade("p1_ik", ik_3r=3)
+    assert number.score == 0 and number.message == "IK: ik_3r should be a function, but it is of type int"
 
 
 def test_an_ik_that_raises_on_one_branch_keeps_the_other_branchs_credit(master1):

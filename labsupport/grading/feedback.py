@@ -156,6 +156,11 @@ def complex_message(fname: str) -> str:
     return validate.complex_message(f"{fname} returned")
 
 
+def not_a_function_message(fname: str, kind: str) -> str:
+    """What to say when ``fname`` holds a ``kind``, not a function (in the notebook and in the batch grader)."""
+    return f"{fname} should be a function, but it is of type {kind}"
+
+
 def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.ndarray:
     """Check a returned value is a finite vector of ``size`` numbers; say plainly what is wrong if not.
 
@@ -269,7 +274,7 @@ class DirectProbe(Probe):
     def call(self, fname: str, *args, **kwargs):
         fn = self._lookup(fname)
         if not callable(fn):
-            raise StudentError(f"{fname} should be a function, but it is of type {type(fn).__name__}")
+            raise StudentError(not_a_function_message(fname, type(fn).__name__))
 
         (expanded, handed), kwargs = self._expand(args), copy.deepcopy(kwargs)
 

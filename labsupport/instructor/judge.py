@@ -52,6 +52,7 @@ from labsupport.grading.feedback import (
     StudentTimeout,
     complex_message,
     failed,
+    not_a_function_message,
     noting_state_write,
     raised_text,
 )
@@ -442,7 +443,7 @@ def _decode(name: str, answer: dict, call: bool = False):
             f"{name} is not defined in the notebook (its cell was deleted, renamed or failed, or never ran)"
         )
     if answer.get("not_callable"):
-        raise StudentError(f"{name} should be a function, but it is of type {answer.get('type')}")
+        raise StudentError(not_a_function_message(name, answer.get("type")))
     if answer.get("timeout"):
         why = "used too much CPU time" if answer["timeout"] == "cpu" else "waited too long"
         raise StudentTimeout(f"{name} did not return: it {why}")
