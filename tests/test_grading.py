@@ -426,8 +426,10 @@ def test_an_answer_from_the_sandbox_is_read_or_refused_in_plain_words():
         assert type(caught.value) is kind
     with pytest.raises(StudentError, match=r"^ik_3r returned a value of type str, expected numbers$"):
         read("ik_3r", {"type": "str"}, call=True)
-    with pytest.raises(StudentError, match=r"^ik_3r returned not numbers, expected numbers$"):
-        read("ik_3r", {}, call=True)  # no type named: an answer the sandbox never writes
+    never_written = [{}, {"type": ""}, {"type": 5}, {"type": ["int"], "not_callable": True}, {"not_callable": True}]
+    for answer in never_written:  # no type named, or not as text
+        with pytest.raises(StudentError, match=rf"^ik_3r: {re.escape(judge.ALTERED_ANSWER)}$"):
+            read("ik_3r", answer, call=True)
     assert read("ik_3r", {"none": True}) is None
     got = read("ik_3r", {"array": [1, 2, 3, 4], "shape": [2, 2]})
     assert got.dtype == float and got.tolist() == [[1.0, 2.0], [3.0, 4.0]]

@@ -442,8 +442,13 @@ def _decode(name: str, answer: dict, call: bool = False):
         raise StudentError(
             f"{name} is not defined in the notebook (its cell was deleted, renamed or failed, or never ran)"
         )
+    kind = answer.get("type")
+    if kind is not None and not (isinstance(kind, str) and kind):  # the sandbox names a type as text
+        raise StudentError(f"{name}: {ALTERED_ANSWER}")
     if answer.get("not_callable"):
-        raise StudentError(not_a_function_message(name, answer.get("type")))
+        if not kind:  # the sandbox names the type of a value that is not a function
+            raise StudentError(f"{name}: {ALTERED_ANSWER}")
+        raise StudentError(not_a_function_message(name, kind))
     if answer.get("timeout"):
         why = "used too much CPU time" if answer["timeout"] == "cpu" else "waited too long"
         raise StudentTimeout(f"{name} did not return: it {why}")
@@ -462,9 +467,9 @@ def _decode(name: str, answer: dict, call: bool = False):
             return np.asarray(answer["array"], dtype=float).reshape(answer["shape"])
         except (TypeError, ValueError):
             raise StudentError(f"{name} returned something unreadable") from None
-    what = "returned" if call else "is"
-    kind = answer.get("type")
-    raise StudentError(f"{name} {what} {f'a value of type {kind}' if kind else 'not numbers'}, expected numbers")
+    if not kind:  # the sandbox names the type of every value that is not numbers
+        raise StudentError(f"{name}: {ALTERED_ANSWER}")
+    raise StudentError(f"{name} {'returned' if call else 'is'} a value of type {kind}, expected numbers")
 
 
 # ---------------------------------------------------------------------------------------------
