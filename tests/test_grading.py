@@ -803,6 +803,50 @@ def test_the_sandbox_can_fill_only_its_capped_scratch_space(tmp_path):
     assert all(0 < written[d] <= cap for d in ("/dev/shm", "/tmp", "/home/student")), written
 
 
+def test_the_sandbox_runs_as_an_ordinary_user_who_writes_nowhere_else(tmp_path):
+    """The notebook runs as user 1000, not as the grader's user; the system, the interpreter,
+    its packages and the student's labsupport take no file, even a tiny one; and a file past the
+    size limit is refused even where scratch space is left (the limit is a second line, behind
+    the capped mounts)."""
+    layout = isolation.prepare(tmp_path / "layout")
+    mib = 1 << 20
+    assert layout.limits.file_size + mib < layout.limits.scratch  # the limit, not the cap, must refuse
+    probe = (
+        "import errno, os, site, sys, labsupport\n"
+        "print(os.getuid(), os.getgid(), os.geteuid(), os.getegid())\n"
+        "places = ['/usr', '/usr/lib', '/lib', '/etc', sys.prefix, sys.base_prefix, site.getsitepackages()[0],\n"
+        "          os.path.dirname(labsupport.__file__), os.path.dirname(os.__file__)]\n"
+        "for d in places:\n"
+        "    path = os.path.join(d, 'sandbox-probe')\n"
+        "    try:\n"
+        "        open(path, 'xb').close()\n"
+        "    except OSError as e:\n"
+        "        print(d, errno.errorcode[e.errno])\n"
+        "    else:\n"
+        "        os.remove(path)  # a tiny file, taken back at once: a regression leaves nothing behind\n"
+        "        print(d, 'writable')\n"
+        "try:\n"
+        "    with open('/tmp/big', 'wb') as f:\n"
+        f"        f.write(bytes({layout.limits.file_size + mib}))\n"
+        "    print('big written')\n"
+        "except OSError as e:\n"
+        "    print('big', errno.errorcode[e.errno])\n"
+    )
+    proc = subprocess.run(
+        isolation.command(layout, [layout.python, "-c", probe]),
+        capture_output=True,
+        text=True,
+        timeout=120,
+        preexec_fn=lambda: isolation.apply_limits(layout.limits),
+    )
+    lines = proc.stdout.splitlines()
+    assert lines and lines[0] == "1000 1000 1000 1000", (lines, proc.stderr)
+    places = dict(line.rsplit(" ", 1) for line in lines[1:-1])
+    assert len(places) >= 7, (lines, proc.stderr)  # the venv and its base may be the same folder
+    assert set(places.values()) <= {"EROFS", "EACCES", "EPERM"}, places
+    assert lines[-1] == "big EFBIG", (lines, proc.stderr)
+
+
 def test_masters_and_unusual_right_answers_get_full_marks_on_problem2(tmp_path):
     """The master, and the same answers written another right way (a SciPy IK, J̇q̇ by finite
     differences, explicit inverses: ``hostile/build.py``), score full marks in the sandbox."""
