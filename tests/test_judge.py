@@ -1,0 +1,164 @@
+"""``judge.grade`` run in this process, on small notebooks and checks of the tests' own.
+
+The batch runs it in its worker processes (``tests/test_grading.py``); here each rule of the
+row it returns is seen on its own: the points of each check, the notes, a check that breaks,
+a notebook that cannot be read, one that ends its own process, and the wall-clock backstop.
+"""
+
+import nbformat
+import numpy as np
+import pytest
+
+import labsupport.grading
+from labsupport.grading.feedback import State, failed, not_implemented, passed
+from labsupport.instructor import isolation, judge
+
+SEED = 3
+
+
+def notebook(*sources: str) -> bytes:
+    nb = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell(s) for s in sources])
+    return nbformat.writes(nb).encode()
+
+
+def spec(**points: float) -> dict:
+    return {"checks": [{"name": name, "points": p} for name, p in points.items()]}
+
+
+@pytest.fixture(scope="module")
+def start(tmp_path_factory):
+    layout = isolation.prepare(tmp_path_factory.mktemp("judge") / "layout")
+    return lambda: (isolation.server_command(layout), {}, "/")
+
+
+@pytest.fixture
+def checks(monkeypatch):
+    """The judge's registry of checks, replaced by the dictionary a test fills."""
+    chosen = {}
+    monkeypatch.setattr(labsupport.grading, "registry", lambda: chosen)
+    return chosen
+
+
+def check_double(probe, seed):
+    got = probe.call("double", np.array([1.0, float(seed)]))
+    if np.allclose(got, [2.0, 2.0 * seed]):
+        return passed("c_double", "double doubles")
+    return failed("c_double", f"double returned {got}")
+
+
+def check_written_before_seeds(probe):  # one argument: run_check leaves the seed out
+    return passed("c_old", f"value is {float(probe.get('value')):g}")
+
+
+def check_half(probe, seed):
+    return failed("c_half", f"half right at seed {seed}", 0.5)
+
+
+def check_missing(probe, seed):
+    probe.call("not_there", 1.0)
+    return passed("c_missing", "unreachable: the call raises")
+
+
+def check_todo(probe, seed):
+    return not_implemented("c_todo", "todo is None: not implemented yet")
+
+
+NOTEBOOK = notebook(
+    "def double(x):\n    return 2 * x",
+    "value = 7.0",
+    "with open('notes.txt', 'w') as f:\n    f.write('my notes')",
+    "raise ValueError('on purpose')",
+    "import numpy\nnumpy.allclose = lambda *args, **kwargs: True",
+    "exec('last = ' + '1')",
+)
+
+
+def test_each_check_scores_its_share_of_its_points_and_the_notes_say_what_the_notebook_did(start, checks):
+    checks.update(
+        c_double=check_double,
+        c_old=check_written_before_seeds,
+        c_half=check_half,
+        c_missing=check_missing,
+        c_todo=check_todo,
+    )
+    row = judge.grade(spec(c_double=2, c_old=3, c_half=4, c_missing=1.5, c_todo=1), NOTEBOOK, SEED, start)
+    assert row["status"] == "graded", row
+    assert row["scores"] == {"c_double": 2.0, "c_old": 3.0, "c_half": 2.0, "c_missing": 0.0, "c_todo": 0.0}
+    assert row["messages"] == {
+        "c_double": "double doubles",
+        "c_old": "value is 7",
+        "c_half": "half right at seed 3",
+        "c_missing": "not_there is not defined in the notebook (its cell was deleted, renamed or failed, or never ran)",
+        "c_todo": "todo is None: not implemented yet",
+    }
+    assert row["notes"] == [
+        "cell 6 (\"exec('last = ' + '1')\") runs code built while the notebook runs (exec, eval or compile of "
+        "a string it makes), which is not in the notebook's text: the instructor reads it by hand",
+        'cell 4 ("raise ValueError(\'on purpose\')") raised ValueError: "on purpose"',
+        "the notebook replaced numpy.allclose (no effect on grading: the checks run in a separate process)",
+        'the notebook wrote files: "/home/student/notes.txt" (in its private scratch space, removed after grading'
+        + judge.HOME_IS_CONTENT
+        + ")",
+        "c_half: half right at seed 3",
+        "c_missing: not_there is not defined in the notebook (its cell was deleted, renamed or failed, or never ran)",
+        "c_todo: not implemented yet",
+    ]
+    assert row["sandbox_cpu"] > 0
+
+
+def test_a_check_that_breaks_leaves_the_row_unrecorded_and_the_others_scored(start, checks):
+    def check_with_a_bug(probe, seed):
+        return {}["a key the check forgot"]
+
+    checks.update(c_double=check_double, c_bug=check_with_a_bug)
+    row = judge.grade(spec(c_double=2, c_bug=1), NOTEBOOK, SEED, start)
+    assert row["status"] == "error"
+    assert row["scores"] == {"c_double": 2.0, "c_bug": 0.0}
+    assert row["messages"]["c_bug"] == "the grader could not run this check: KeyError: 'a key the check forgot'"
+    assert "c_bug: the grader could not run this check: KeyError: 'a key the check forgot'" in row["notes"]
+
+
+def test_an_unreadable_notebook_scores_zero_on_every_check_without_a_sandbox(checks):
+    def no_sandbox():
+        raise AssertionError("an unreadable notebook needs no sandbox")
+
+    checks.update(c_double=check_double)
+    row = judge.grade(spec(c_double=2, c_half=1), b"this is not a notebook", SEED, no_sandbox)
+    assert row["status"] == "unreadable"
+    assert row["scores"] == {"c_double": 0.0, "c_half": 0.0}
+    reason = row["notes"][0]
+    assert reason.startswith("not a valid notebook") and row["notes"] == [reason]
+    assert row["messages"] == {"c_double": reason, "c_half": reason}
+
+
+def test_a_notebook_that_ends_its_own_process_is_not_graded_and_said_so_once(start, checks):
+    checks.update(c_double=check_double, c_half=check_half)
+    row = judge.grade(
+        spec(c_double=2, c_half=1), notebook("def double(x):\n    return 2 * x", "import os\nos._exit(3)"), SEED, start
+    )
+    why = "the notebook ended the grading process while its cells ran (exit, crash or kill)"
+    assert row["status"] == "graded"
+    assert row["scores"] == {"c_double": 0.0, "c_half": 0.0}
+    assert row["messages"] == {"c_double": f"not graded: {why}", "c_half": f"not graded: {why}"}
+    assert row["notes"] == [why]  # not once more for each check
+
+
+def test_past_the_wall_clock_backstop_the_row_asks_to_be_graded_again(start, checks):
+    checks.update(c_double=check_double)
+    waits = notebook("import time\nt0 = time.time()\nwhile time.time() - t0 < 20:\n    time.sleep(0.05)")
+    row = judge.grade(spec(c_double=2), waits, SEED, start, judge.Budget(wall=1.0, idle=30.0, run_idle=60.0))
+    assert row["status"] == judge.REGRADE and row["scores"] == {} and row["messages"] == {}
+    (note,) = row["notes"]
+    assert "grade it again (with the same --seed) before recording a score" in note, note
+
+
+def test_a_passed_check_whose_law_wrote_into_its_state_keeps_its_points_and_gets_a_note(start, checks):
+    def check_law(probe, seed):
+        probe.call("law", State(q=np.array([0.1, 0.2, 0.3]), qdot=np.zeros(3)))
+        return passed("c_law", "the law ran")
+
+    checks.update(c_law=check_law)
+    law = "def law(model, data):\n    data.qvel[:] = 1.0\n    return [0.0, 0.0, 0.0]"
+    row = judge.grade(spec(c_law=4), notebook(law), SEED, start)
+    assert row["status"] == "graded" and row["scores"] == {"c_law": 4.0}
+    assert row["notes"] == ["c_law: passed, but law changed data.qvel of the state it was handed"], row["notes"]
