@@ -5,6 +5,12 @@ row it returns is seen on its own: the points of each check, the notes, a check 
 a notebook that cannot be read, one that ends its own process, and the wall-clock backstop.
 """
 
+import os
+import signal
+import subprocess
+import sys
+import time
+
 import nbformat
 import numpy as np
 import pytest
@@ -106,6 +112,36 @@ def test_each_check_scores_its_share_of_its_points_and_the_notes_say_what_the_no
     assert row["sandbox_cpu"] > 0
 
 
+@pytest.mark.parametrize("many", [5, 7])
+def test_the_notes_name_five_failed_cells_replaced_names_and_files_at_most(start, checks, many):
+    """A notebook of many errors gets a readable list, not a wall: five of each, and "..." only
+    where there were more. A check's share of its points is kept to four decimals."""
+
+    def check_third(probe, seed):
+        return failed("c_third", "a third right", 1 / 3)
+
+    checks.update(c_third=check_third)
+    names = ("cos", "exp", "hypot", "log", "sin", "sqrt", "tan")[:many]
+    replaces = (
+        "import numpy\n"
+        f"for name in {names!r}:\n"
+        "    setattr(numpy, name, lambda *args, f=getattr(numpy, name), **kwargs: f(*args, **kwargs))"
+    )
+    writes = f"for n in range({many}):\n    open(f'file{{n}}.txt', 'w').close()"
+    cells = [f"raise ValueError('error {n}')" for n in range(1, many + 1)] + [replaces, writes]
+    row = judge.grade(spec(c_third=1), notebook(*cells), SEED, start)
+    assert row["scores"] == {"c_third": 0.3333}
+    failed_cells = [n for n in row["notes"] if n.startswith("cell ")]
+    assert [n.rsplit(" ", 1)[1] for n in failed_cells] == [f'{n}"' for n in range(1, 6)], row["notes"]
+    more = " ..." if many > 5 else ""
+    assert (
+        f"the notebook replaced numpy.cos, numpy.exp, numpy.hypot, numpy.log, numpy.sin{more} "
+        "(no effect on grading: the checks run in a separate process)"
+    ) in row["notes"], row["notes"]
+    (files,) = [n for n in row["notes"] if n.startswith("the notebook wrote files: ")]
+    assert files.count("/home/student/file") == 5 and (" ... (in its" in files) == (many > 5), files
+
+
 def test_a_check_that_breaks_leaves_the_row_unrecorded_and_the_others_scored(start, checks):
     def check_with_a_bug(probe, seed):
         return {}["a key the check forgot"]
@@ -162,3 +198,63 @@ def test_a_passed_check_whose_law_wrote_into_its_state_keeps_its_points_and_gets
     row = judge.grade(spec(c_law=4), notebook(law), SEED, start)
     assert row["status"] == "graded" and row["scores"] == {"c_law": 4.0}
     assert row["notes"] == ["c_law: passed, but law changed data.qvel of the state it was handed"], row["notes"]
+
+
+SPIN = "import time\nt0 = time.process_time()\nwhile time.process_time() - t0 < {seconds}:\n    pass\n"
+
+
+def test_the_cpu_time_of_a_process_tree_counts_its_children_running_and_reaped():
+    """What the processes say they used (``time.process_time``), against the judge's reading of
+    /proc: a child still running, a child that ended and was reaped, and the root's own."""
+    tree = (  # the running child leads a process group of its own: the tree follows parents, not groups
+        "import subprocess, sys, time\n"
+        f"spin = {SPIN!r}\n"
+        "done = subprocess.run([sys.executable, '-c', spin.format(seconds=0.4) + 'print(time.process_time())'],\n"
+        "                      capture_output=True, text=True)\n"
+        "running = subprocess.Popen([sys.executable, '-c', spin.format(seconds=0.6)\n"
+        "                            + 'print(time.process_time(), flush=True)\\ntime.sleep(60)'],\n"
+        "                           stdout=subprocess.PIPE, text=True, start_new_session=True)\n"
+        "exec(spin.format(seconds=0.3))\n"
+        "print(running.pid, done.stdout.strip(), running.stdout.readline().strip(), time.process_time(), flush=True)\n"
+        "time.sleep(60)\n"
+    )
+    root = subprocess.Popen([sys.executable, "-c", tree], stdout=subprocess.PIPE, text=True, start_new_session=True)
+    line = root.stdout.readline().split()
+    measured = judge.tree_cpu(root.pid)
+    os.killpg(root.pid, signal.SIGKILL)
+    if line:
+        os.kill(int(line[0]), signal.SIGKILL)
+    root.wait()
+    said = [float(x) for x in line[1:]]
+    assert len(said) == 3 and sum(said) > 1.3, said
+    assert measured == pytest.approx(sum(said), abs=0.1), (measured, said)
+    assert judge.tree_cpu(root.pid) == 0.0  # a process that is gone has used nothing the judge can see
+
+
+def test_waiting_is_told_from_running_or_queueing_for_a_cpu():
+    """``_busy``: the wall clock runs on past CPU time plus queueing only while a process waits
+    (sleeps, reads); a process that runs, or is runnable on a machine kept busy, keeps up."""
+    if not os.path.exists(f"/proc/{os.getpid()}/schedstat"):
+        pytest.skip("this kernel keeps no scheduler statistics: the judge then counts no time as waiting")
+    cpu = min(os.sched_getaffinity(0))  # three spinners share it: each queues two thirds of the time
+    spin = f"import os\nos.sched_setaffinity(0, {{{cpu}}})\nprint(flush=True)\nwhile True:\n    pass"
+    sleeper = subprocess.Popen(
+        [sys.executable, "-c", "import time; print(flush=True); time.sleep(60)"], stdout=subprocess.PIPE
+    )
+    spinners = [subprocess.Popen([sys.executable, "-c", spin], stdout=subprocess.PIPE) for _ in range(3)]
+    spinner = spinners[0]
+    try:
+        for proc in (sleeper, *spinners):
+            proc.stdout.readline()  # started
+        before = {p: judge._busy(p.pid) for p in (sleeper, spinner)}
+        time.sleep(0.6)
+        after = {p: judge._busy(p.pid) for p in (sleeper, spinner)}
+    finally:
+        for proc in (sleeper, *spinners):
+            proc.kill()
+            proc.wait()
+    waited = {p: (after[p][0] - before[p][0]) - (after[p][1] - before[p][1]) for p in (sleeper, spinner)}
+    assert waited[sleeper] > 0.5, waited
+    assert abs(waited[spinner]) < 0.1, waited
+    wall, busy = judge._busy(sleeper.pid)  # gone: unknown, never counted as waiting
+    assert wall == pytest.approx(busy, abs=1e-3)
