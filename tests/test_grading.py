@@ -437,12 +437,20 @@ def test_an_answer_from_the_sandbox_is_read_or_refused_in_plain_words():
 
 def test_file_lists_show_absolute_paths_quoted_and_cut():
     """A file list from the sandbox: only absolute paths are shown, each quoted, and cut to
-    MAX_PATH_CHARS with an ellipsis."""
+    MAX_PATH_CHARS with an ellipsis: in the middle where the file's name is short, so that it
+    shows, else at the end."""
     long = "/home/student/" + "x" * 100
-    assert judge._paths(["/home/student/out.txt", "relative.txt", 5, None, long, '/tmp/a "b"']) == [
+    deep = "/home/student/" + "/".join(f"run{k:02d}" for k in range(20)) + "/results.csv"
+    assert judge._paths(["/home/student/out.txt", "relative.txt", 5, None, long, '/tmp/a "b"', deep]) == [
         '"/home/student/out.txt"',
         '"' + long[: judge.MAX_PATH_CHARS] + '…"',
         '"/tmp/a \\"b\\""',
+        '"' + deep[: judge.MAX_PATH_CHARS - len("results.csv") - 2] + '…/results.csv"',
+    ]
+    half = "/home/student/" + "d" * 80 + "/" + "n" * (judge.MAX_PATH_CHARS // 2)  # the longest name kept whole
+    assert judge._paths([half, half + "n"]) == [
+        '"' + half[: judge.MAX_PATH_CHARS // 2 - 2] + "…/" + "n" * (judge.MAX_PATH_CHARS // 2) + '"',
+        '"' + half[: judge.MAX_PATH_CHARS] + '…"',
     ]
     assert judge._paths(["/" + "y" * (judge.MAX_PATH_CHARS - 1)]) == ['"/' + "y" * (judge.MAX_PATH_CHARS - 1) + '"']
 

@@ -6,6 +6,7 @@ a notebook that cannot be read, one that ends its own process, and the wall-cloc
 """
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -140,6 +141,23 @@ def test_the_notes_name_five_failed_cells_replaced_names_and_files_at_most(start
     ) in row["notes"], row["notes"]
     (files,) = [n for n in row["notes"] if n.startswith("the notebook wrote files: ")]
     assert files.count("/home/student/file") == 5 and (" ... (in its" in files) == (many > 5), files
+
+
+def test_without_a_sandbox_the_same_notebook_scores_the_same(tmp_path, checks):
+    """``--unsafe-no-sandbox`` (trusted submissions): the server runs on this interpreter, with
+    the student's labsupport first on the path, in a scratch folder of its own."""
+    root = isolation.prepare_unsafe(tmp_path / "unsafe")
+    assert (root / "student" / "labsupport" / "__init__.py").is_file()
+    assert (root / "runner" / isolation.SERVER).is_file()
+    checks.update(c_double=check_double, c_old=check_written_before_seeds, c_half=check_half)
+    row = judge.grade(spec(c_double=2, c_old=3, c_half=4), NOTEBOOK, SEED, lambda: isolation.unsafe_command(root))
+    assert row["status"] == "graded" and row["scores"] == {"c_double": 2.0, "c_old": 3.0, "c_half": 2.0}, row
+    assert 'cell 4 ("raise ValueError(\'on purpose\')") raised ValueError: "on purpose"' in row["notes"]
+    (files,) = [n for n in row["notes"] if n.startswith("the notebook wrote files: ")]
+    (shown,) = re.findall(r'"(/[^"]+)"', files)  # the row's scratch folder, perhaps cut, and the file's name
+    head = shown.removesuffix("/notes.txt").removesuffix("…")
+    assert shown.endswith("/notes.txt") and head, files
+    assert f"{tmp_path}/unsafe/row-".startswith(head) or head.startswith(f"{tmp_path}/unsafe/row-"), files
 
 
 def test_a_check_that_breaks_leaves_the_row_unrecorded_and_the_others_scored(start, checks):

@@ -630,15 +630,22 @@ MISSING_MODULE_ADVICE = (
 HOME_IS_CONTENT = f"; {isolation.HOME} is the notebook's home folder, and Colab's /content is the same folder"
 
 
+def _shown_path(path: str) -> str:
+    """``path`` cut to about :data:`MAX_PATH_CHARS`: in the middle where its file name is short
+    enough to keep whole (``/home/student/runs/…/results.csv``), else at the end."""
+    if len(path) <= MAX_PATH_CHARS:
+        return path
+    name = path.rsplit("/", 1)[1]
+    if len(name) <= MAX_PATH_CHARS // 2:
+        return path[: MAX_PATH_CHARS - len(name) - 2] + "…/" + name
+    return path[:MAX_PATH_CHARS] + "…"
+
+
 def _paths(entries: list) -> list[str]:
     """The entries of a file list that are absolute paths, as the sandbox lists them, each quoted
-    and cut to :data:`MAX_PATH_CHARS` (a file's name is the notebook's own text: quoted, it cannot
+    and cut by :func:`_shown_path` (a file's name is the notebook's own text: quoted, it cannot
     pass for a note of the grader's); anything else is never shown as a file."""
-    return [
-        json.dumps(p if len(p) <= MAX_PATH_CHARS else p[:MAX_PATH_CHARS] + "…", ensure_ascii=False)
-        for p in entries
-        if isinstance(p, str) and p.startswith("/")
-    ]
+    return [json.dumps(_shown_path(p), ensure_ascii=False) for p in entries if isinstance(p, str) and p.startswith("/")]
 
 
 def run_check(check, probe: Probe, seed: int) -> Result:
