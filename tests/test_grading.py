@@ -4,6 +4,7 @@ the scores do not depend on the machine's load, and a grade is reproduced by its
 
 (The checks themselves are tested in test_checks.py.)"""
 
+import ast
 import csv
 import hashlib
 import os
@@ -772,7 +773,8 @@ def test_the_sandbox_sees_no_checkout_and_no_forbidden_module(tmp_path, monkeypa
     assert "is off limits in a Problem TODO" in lines[2]
     assert lines[3].startswith("no network")
     assert "labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO" in lines[4]
-    assert set(lines[5].split()) <= {name for name, _ in layout.env} | {"PWD", "LC_CTYPE"}  # the layout's, no more
+    seen, given = set(lines[5].split()), {name for name, _ in layout.env}
+    assert given <= seen <= given | {"PWD", "LC_CTYPE"}  # the layout's, no more, no less
 
 
 def test_the_sandbox_can_fill_only_its_capped_scratch_space(tmp_path):
@@ -812,16 +814,19 @@ def test_the_sandbox_can_fill_only_its_capped_scratch_space(tmp_path):
 
 
 def test_the_sandbox_runs_as_an_ordinary_user_who_writes_nowhere_else(tmp_path):
-    """The notebook runs as user 1000, not as the grader's user; the system, the interpreter,
-    its packages and the student's labsupport take no file, even a tiny one; and a file past the
-    size limit is refused even where scratch space is left (the limit is a second line, behind
-    the capped mounts)."""
+    """The notebook runs as user 1000, not as the grader's user, under the batch's limits and
+    with matplotlib's font cache built once for all; the system, the interpreter, its packages
+    and the student's labsupport take no file, even a tiny one; and a file past the size limit is
+    refused even where scratch space is left (the limit is a second line, behind the capped
+    mounts)."""
     layout = isolation.prepare(tmp_path / "layout")
     mib = 1 << 20
     assert layout.limits.file_size + mib < layout.limits.scratch  # the limit, not the cap, must refuse
     probe = (
-        "import errno, os, site, sys, labsupport\n"
+        "import errno, glob, os, resource, site, sys, labsupport\n"
         "print(os.getuid(), os.getgid(), os.geteuid(), os.getegid())\n"
+        "print(*(resource.getrlimit(getattr(resource, f'RLIMIT_{n}')) for n in ('AS', 'CPU', 'FSIZE', 'CORE')))\n"
+        "print(*sorted(os.path.basename(p) for p in glob.glob(os.environ['MPLCONFIGDIR'] + '/fontlist-*.json')))\n"
         "places = ['/usr', '/usr/lib', '/lib', '/etc', sys.prefix, sys.base_prefix, site.getsitepackages()[0],\n"
         "          os.path.dirname(labsupport.__file__), os.path.dirname(os.__file__)]\n"
         "for d in places:\n"
@@ -849,10 +854,58 @@ def test_the_sandbox_runs_as_an_ordinary_user_who_writes_nowhere_else(tmp_path):
     )
     lines = proc.stdout.splitlines()
     assert lines and lines[0] == "1000 1000 1000 1000", (lines, proc.stderr)
-    places = dict(line.rsplit(" ", 1) for line in lines[1:-1])
+    limits = layout.limits
+    assert lines[1] == " ".join(str((x, x)) for x in (limits.memory, limits.cpu, limits.file_size, 0)), lines[1]
+    font_cache = sorted(p.name for p in (layout.root / "mpl").glob("fontlist-*.json"))
+    assert font_cache and lines[2] == " ".join(font_cache)  # matplotlib's, built once for the batch and shared
+    places = dict(line.rsplit(" ", 1) for line in lines[3:-1])
     assert len(places) >= 7, (lines, proc.stderr)  # the venv and its base may be the same folder
     assert set(places.values()) <= {"EROFS", "EACCES", "EPERM"}, places
     assert lines[-1] == "big EFBIG", (lines, proc.stderr)
+
+
+def test_a_forbidden_packages_stub_names_exactly_its_own_modules(tmp_path):
+    """A stubbed package imports its modules on demand (``labsupport.controllers.joint_space``
+    is a stub of its own); any other name is a refusal, not a failed import."""
+    isolation.write_student_package(tmp_path / "student")
+    for package in ("controllers", "kinematics"):
+        stub = ast.parse((tmp_path / "student" / "labsupport" / package / "__init__.py").read_text())
+        (listed,) = [
+            ast.literal_eval(node.value)
+            for node in stub.body
+            if isinstance(node, ast.Assign) and [t.id for t in node.targets] == ["_SUBMODULES"]
+        ]
+        real = (ROOT / "labsupport" / package).glob("*.py")
+        assert listed == tuple(sorted(p.stem for p in real if p.name != "__init__.py")), (package, listed)
+
+
+def test_the_installed_labsupport_is_masked_in_the_sandbox_whichever_way_it_was_installed(tmp_path, monkeypatch):
+    """A wheel leaves ``labsupport/`` and its ``-info`` folder in site-packages; an editable
+    install, a ``.pth`` file or finder naming the checkout or labsupport; setuptools' older way, an
+    ``.egg-link``. The sandbox sees each of them empty, so the student's stubbed labsupport is
+    the only one it can import; every other package stays as it is."""
+    site = tmp_path / "site-packages"
+    masked_dirs = ["labsupport", "labsupport-1.2.dist-info", "labsupport-0.9.egg-info"]
+    masked_files = {
+        "__editable__.labsupport-1.2.pth": "import __editable___labsupport_1_2_finder",
+        "__editable___labsupport_1_2_finder.py": "MAPPING = {}",
+        "course.pth": str(isolation.CHECKOUT),
+        "labsupport.egg-link": "somewhere",
+    }
+    kept = {"numpy": None, "labsupport_extras": None, "distutils-precedence.pth": "import os", "six.py": "x = 1"}
+    for name in masked_dirs + [n for n, text in kept.items() if text is None]:
+        (site / name).mkdir(parents=True)
+    for name, text in {**masked_files, **{n: t for n, t in kept.items() if t is not None}}.items():
+        (site / name).write_text(text)
+    monkeypatch.setattr(sys, "prefix", str(tmp_path / "a-virtual-environment"))
+    monkeypatch.setattr(isolation.sysconfig, "get_paths", lambda: {"purelib": str(site)})
+    mounts, _, _ = isolation._interpreter_mounts(tmp_path / "layout")
+    inside = f"{isolation.VENV}/lib/python{sys.version_info.major}.{sys.version_info.minor}/site-packages"
+    binds = {mounts[i + 2]: mounts[i + 1] for i, flag in enumerate(mounts) if flag == "--ro-bind"}
+    assert binds[inside] == str(site.resolve())
+    masks = {target.rsplit("/", 1)[1]: source for target, source in binds.items() if target.startswith(inside + "/")}
+    empty = str(tmp_path / "layout" / "empty")
+    assert masks == {**{name: empty for name in masked_dirs}, **{name: "/dev/null" for name in masked_files}}
 
 
 def test_masters_and_unusual_right_answers_get_full_marks_on_problem2(tmp_path):
