@@ -892,7 +892,14 @@ def test_the_installed_labsupport_is_masked_in_the_sandbox_whichever_way_it_was_
         "course.pth": str(isolation.CHECKOUT),
         "labsupport.egg-link": "somewhere",
     }
-    kept = {"numpy": None, "labsupport_extras": None, "distutils-precedence.pth": "import os", "six.py": "x = 1"}
+    kept = {
+        "numpy": None,
+        "numpy-2.0.0.dist-info": None,
+        "labsupport_extras": None,
+        "distutils-precedence.pth": "import os",
+        "six.py": "x = 1",
+        "labsupport-notes.txt": "not a path file",
+    }
     for name in masked_dirs + [n for n, text in kept.items() if text is None]:
         (site / name).mkdir(parents=True)
     for name, text in {**masked_files, **{n: t for n, t in kept.items() if t is not None}}.items():

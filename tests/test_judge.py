@@ -143,13 +143,22 @@ def test_the_notes_name_five_failed_cells_replaced_names_and_files_at_most(start
     assert files.count("/home/student/file") == 5 and (" ... (in its" in files) == (many > 5), files
 
 
-def test_without_a_sandbox_the_same_notebook_scores_the_same(tmp_path, checks):
+def test_without_a_sandbox_the_same_notebook_scores_the_same(tmp_path, checks, monkeypatch):
     """``--unsafe-no-sandbox`` (trusted submissions): the server runs on this interpreter, with
-    the student's labsupport first on the path, in a scratch folder of its own."""
+    the student's labsupport first on the path, in a scratch folder of its own, and without the
+    grader's environment."""
+    monkeypatch.setenv("CANVAS_API_TOKEN", "the instructor's secret")
     root = isolation.prepare_unsafe(tmp_path / "unsafe")
     assert (root / "student" / "labsupport" / "__init__.py").is_file()
     assert (root / "runner" / isolation.SERVER).is_file()
-    checks.update(c_double=check_double, c_old=check_written_before_seeds, c_half=check_half)
+
+    def check_secret(probe, seed):
+        return passed("c_secret", f"{float(probe.get('secret')):g} characters of the secret")
+
+    checks.update(c_double=check_double, c_old=check_written_before_seeds, c_half=check_half, c_secret=check_secret)
+    secret = notebook("import os\nsecret = len(os.environ.get('CANVAS_API_TOKEN', ''))")
+    row = judge.grade(spec(c_secret=1), secret, SEED, lambda: isolation.unsafe_command(root))
+    assert row["messages"] == {"c_secret": "0 characters of the secret"}, row
     row = judge.grade(spec(c_double=2, c_old=3, c_half=4), NOTEBOOK, SEED, lambda: isolation.unsafe_command(root))
     assert row["status"] == "graded" and row["scores"] == {"c_double": 2.0, "c_old": 3.0, "c_half": 2.0}, row
     assert 'cell 4 ("raise ValueError(\'on purpose\')") raised ValueError: "on purpose"' in row["notes"]
@@ -158,6 +167,30 @@ def test_without_a_sandbox_the_same_notebook_scores_the_same(tmp_path, checks):
     head = shown.removesuffix("/notes.txt").removesuffix("…")
     assert shown.endswith("/notes.txt") and head, files
     assert f"{tmp_path}/unsafe/row-".startswith(head) or head.startswith(f"{tmp_path}/unsafe/row-"), files
+
+
+def test_errors_forged_in_the_graders_channel_are_named_and_never_break_the_row(start, checks):
+    """The notebook's process writes the report of its own run, so a notebook can rewrite it:
+    entries that are not ``[cell, text]`` are dropped, and a cell the notebook does not have
+    is named by its number, never looked up."""
+    forge = (
+        "import json\n"
+        "real = json.dumps\n"
+        "def forged(obj, *args, **kwargs):\n"
+        "    if isinstance(obj, dict) and 'errors' in obj:\n"
+        "        obj = {**obj, 'errors': [['a', 1], [2, 'KeyError: at the last cell'], [3, 'no error at all'],\n"
+        "                                 [-1, 'NameError: before the first'], [0]]}\n"
+        "    return real(obj, *args, **kwargs)\n"
+        "json.dumps = forged"
+    )
+    checks.update(c_double=check_double)
+    row = judge.grade(spec(c_double=2), notebook("def double(x):\n    return 2 * x", "x = 1", forge), SEED, start)
+    assert row["status"] == "graded" and row["scores"] == {"c_double": 2.0}, row
+    assert row["notes"] == [
+        "cell 3 ('import json') raised KeyError: \"at the last cell\"",
+        'code cell 4 reported an error in a form the sandbox never writes: "no error at all"',
+        'code cell 0 raised NameError: "before the first"',
+    ], row["notes"]
 
 
 def test_a_check_that_breaks_leaves_the_row_unrecorded_and_the_others_scored(start, checks):
