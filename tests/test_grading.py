@@ -745,6 +745,17 @@ def test_a_bubblewrap_that_cannot_start_is_quoted_with_each_cause_and_its_remedy
         assert remedy in said
 
 
+def _in_sandbox(layout: isolation.Layout, code: str) -> subprocess.CompletedProcess:
+    """``code`` run by Python in a fresh sandbox of ``layout``, under the batch's limits."""
+    return subprocess.run(
+        isolation.command(layout, [layout.python, "-c", code]),
+        capture_output=True,
+        text=True,
+        timeout=120,
+        preexec_fn=lambda: isolation.apply_limits(layout.limits),
+    )
+
+
 def test_the_sandbox_sees_no_checkout_and_no_forbidden_module(tmp_path, monkeypatch):
     monkeypatch.setenv("CANVAS_API_TOKEN", "the instructor's secret")  # the grader's environment stays outside
     layout = isolation.prepare(tmp_path / "layout")
@@ -760,9 +771,7 @@ def test_the_sandbox_sees_no_checkout_and_no_forbidden_module(tmp_path, monkeypa
         "try:\n    ct_joint_torque()\nexcept RuntimeError as e:\n    print(e)\n"
         "print(' '.join(sorted(os.environ)))\n"
     )
-    proc = subprocess.run(
-        isolation.command(layout, [layout.python, "-c", probe]), capture_output=True, text=True, timeout=60
-    )
+    proc = _in_sandbox(layout, probe)
     lines = proc.stdout.splitlines()
     assert lines[0].split() == [
         "/opt/venv",
@@ -798,13 +807,7 @@ def test_the_sandbox_can_fill_only_its_capped_scratch_space(tmp_path):
         "    print(d, n)\n"
         "print(open('/proc/self/oom_score_adj').read().strip())\n"
     )
-    proc = subprocess.run(
-        isolation.command(layout, [layout.python, "-c", probe]),
-        capture_output=True,
-        text=True,
-        timeout=120,
-        preexec_fn=lambda: isolation.apply_limits(layout.limits),
-    )
+    proc = _in_sandbox(layout, probe)
     lines = proc.stdout.splitlines()
     assert lines.pop() == "1000", "the sandbox's processes must be the out-of-memory killer's first choice"
     written = {line.split()[0]: int(line.split()[1]) for line in lines}
@@ -845,13 +848,7 @@ def test_the_sandbox_runs_as_an_ordinary_user_who_writes_nowhere_else(tmp_path):
         "except OSError as e:\n"
         "    print('big', errno.errorcode[e.errno])\n"
     )
-    proc = subprocess.run(
-        isolation.command(layout, [layout.python, "-c", probe]),
-        capture_output=True,
-        text=True,
-        timeout=120,
-        preexec_fn=lambda: isolation.apply_limits(layout.limits),
-    )
+    proc = _in_sandbox(layout, probe)
     lines = proc.stdout.splitlines()
     assert lines and lines[0] == "1000 1000 1000 1000", (lines, proc.stderr)
     limits = layout.limits
