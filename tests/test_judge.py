@@ -309,3 +309,50 @@ def test_waiting_is_told_from_running_or_queueing_for_a_cpu():
     assert abs(waited[spinner]) < 0.1, waited
     wall, busy = judge._busy(sleeper.pid)  # gone: unknown, never counted as waiting
     assert wall == pytest.approx(busy, abs=1e-3)
+
+
+def test_each_limit_of_the_budget_stops_what_passes_it_and_says_which(start, checks):
+    """A cell past its CPU or waiting time is stopped and the next cell runs; a call past its own
+    limits scores zero on its check, and the other checks still run."""
+
+    def check_spin(probe, seed):
+        probe.call("spin")
+        return passed("c_spin", "unreachable: the call is stopped")
+
+    def check_wait(probe, seed):
+        probe.call("wait")
+        return passed("c_wait", "unreachable: the call is stopped")
+
+    checks.update(c_spin=check_spin, c_wait=check_wait, c_double=check_double)
+    cells = notebook(
+        "while True:\n    pass",
+        "import time\ntime.sleep(30)",
+        "def double(x):\n    return 2 * x",
+        "def spin():\n    while True:\n        pass",
+        "def wait():\n    import time\n    time.sleep(30)",
+    )
+    budget = judge.Budget(cell=0.5, run=10.0, call=0.5, idle=0.5, run_idle=10.0, check_idle=5.0)
+    row = judge.grade(spec(c_spin=1, c_wait=1, c_double=2), cells, SEED, start, budget)
+    assert row["status"] == "graded" and row["scores"] == {"c_spin": 0.0, "c_wait": 0.0, "c_double": 2.0}, row
+    assert row["notes"][:2] == [
+        "cell 1 ('while True:') timed out (cpu)",
+        "cell 2 ('import time') timed out (idle)",
+    ], row["notes"]
+    assert row["messages"]["c_spin"] == "spin did not return: it used too much CPU time", row["messages"]
+    assert row["messages"]["c_wait"] == "wait did not return: it waited too long", row["messages"]
+
+
+@pytest.mark.parametrize("reason", ["cpu", "idle"])
+def test_past_what_the_cells_have_together_no_later_cell_runs(start, checks, reason):
+    """The cells together may use 0.8 s (of CPU time, the interpreter's start included, or of
+    waiting), each 0.5 s: the cells that spin, or wait, are stopped one by one until they have
+    used that up (after which cell depends on the machine), and no cell after runs."""
+    checks.update(c_double=check_double)
+    budget = judge.Budget(cell=0.5, run=0.8, idle=0.5, run_idle=0.8)
+    stall = "while True:\n    pass" if reason == "cpu" else "import time\ntime.sleep(30)"
+    cells = notebook(*[stall] * 3, "def double(x):\n    return 2 * x")
+    row = judge.grade(spec(c_double=2), cells, SEED, start, budget)
+    *stopped, unrun = [note.split(") ", 1)[1] for note in row["notes"] if note.startswith("cell ")]
+    assert stopped and set(stopped) <= {f"timed out ({reason})", f"timed out ({reason} of all cells together)"}
+    assert unrun == f"not run, nor any cell after it (the cells had used up their {reason} time together)"
+    assert row["scores"] == {"c_double": 0.0} and "double is not defined" in row["messages"]["c_double"]
