@@ -356,3 +356,76 @@ def test_past_what_the_cells_have_together_no_later_cell_runs(start, checks, rea
     assert stopped and set(stopped) <= {f"timed out ({reason})", f"timed out ({reason} of all cells together)"}
     assert unrun == f"not run, nor any cell after it (the cells had used up their {reason} time together)"
     assert row["scores"] == {"c_double": 0.0} and "double is not defined" in row["messages"]["c_double"]
+
+
+def test_what_the_server_sends_back_for_odd_values_long_errors_and_threads(start, checks):
+    """A text that reads as a number is still text; an array of the largest size sent comes back
+    whole, one element more is refused by its size; a long error is cut (200 characters for a
+    cell, 300 for a call); an error in a thread the call started counts only where it is an
+    off-limits call of labsupport."""
+    from labsupport.instructor.sandbox import MAX_ELEMENTS
+
+    def read(name):
+        def check(probe, seed):
+            value = probe.get(name)
+            return passed(name, f"{np.shape(value)} {float(np.sum(value)):g}")
+
+        return check
+
+    def call(name):
+        def check(probe, seed):
+            return passed(name, f"{float(probe.call(name, 1.0)):g}")
+
+        return check
+
+    names = ["text", "largest", "too_large", "long_error", "thread_error", "thread_off_limits"]
+    checks.update({name: (read if name in ("text", "largest", "too_large") else call)(name) for name in names})
+    cells = notebook(
+        "import threading\nimport numpy as np\nimport labsupport.controllers.joint_space as js",
+        f"text = '1.5'\nlargest = np.ones({MAX_ELEMENTS})\ntoo_large = np.ones({MAX_ELEMENTS + 1})",
+        "raise ValueError('c' * 1000)",
+        "def long_error(x):\n    raise ValueError('f' * 1000)",
+        "def in_a_thread(work):\n    t = threading.Thread(target=work)\n    t.start()\n    t.join()",
+        "def thread_error(x):\n    in_a_thread(lambda: 1 / 0)\n    return 2 * x",
+        "def thread_off_limits(x):\n    out = {}\n    in_a_thread(lambda: out.update(tau=js.ct_joint_torque()))\n"
+        "    return out['tau']  # never stored: KeyError",
+    )
+    row = judge.grade(spec(**dict.fromkeys(names, 1)), cells, SEED, start)
+    messages = row["messages"]
+    assert messages["text"] == "text is a value of type str, expected numbers", messages
+    assert messages["largest"] == f"({MAX_ELEMENTS},) {MAX_ELEMENTS}", messages
+    assert (
+        messages["too_large"]
+        == f"too_large is a value of type array of {MAX_ELEMENTS + 1} numbers (too large), expected numbers"
+    )
+    assert messages["long_error"].startswith("long_error raised ValueError: " + "f" * 300), messages
+    assert "f" * 301 not in messages["long_error"], messages
+    assert f'raised ValueError: "{"c" * 200}"' in row["notes"][0] and "c" * 201 not in row["notes"][0], row["notes"]
+    assert messages["thread_error"] == "2", messages  # the thread's ZeroDivisionError was not the call's
+    assert (
+        "labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO"
+        in messages["thread_off_limits"]
+    )
+
+
+def test_colabs_own_modules_import_as_stand_ins_and_the_notebook_runs_on(start, checks):
+    """A notebook from Colab mounts its Drive, downloads a file and turns on widgets: in the
+    sandbox each is a stand-in that does nothing, so the cells after it run; a module the grader
+    lacks is still named, with advice."""
+
+    def check_after(probe, seed):
+        return passed("c_after", f"{float(probe.get('after')):g} {float(probe.get('has_dunder')):g}")
+
+    checks.update(c_after=check_after)
+    cells = notebook(
+        "from google.colab import drive, files\ndrive.mount('/content/drive')\nfiles.download('results.csv')",
+        "import google.colab.output\ngoogle.colab.output.enable_custom_widget_manager()",
+        "import google.colab\nhas_dunder = hasattr(google.colab.drive, '__wrapped__')",
+        "import a_module_nobody_has",
+        "after = 42",
+    )
+    row = judge.grade(spec(c_after=1), cells, SEED, start)
+    assert row["messages"] == {"c_after": "42 0"}, row
+    (note,) = row["notes"]
+    assert note.startswith("cell 4 ('import a_module_nobody_has') raised ModuleNotFoundError: "), note
+    assert note.endswith(f"({judge.MISSING_MODULE_ADVICE})"), note
