@@ -378,11 +378,17 @@ def test_what_the_server_sends_back_for_odd_values_long_errors_and_threads(start
 
         return check
 
-    names = ["text", "largest", "too_large", "long_error", "thread_error", "thread_off_limits"]
-    checks.update({name: (read if name in ("text", "largest", "too_large") else call)(name) for name in names})
+    def read_none(probe, seed):
+        return passed("nothing", f"{probe.get('nothing')}")
+
+    values = ("text", "largest", "too_large", "cplx")
+    names = [*values, "long_error", "thread_error", "thread_off_limits"]
+    checks.update({name: (read if name in values else call)(name) for name in names}, nothing=read_none)
     cells = notebook(
         "import threading\nimport numpy as np\nimport labsupport.controllers.joint_space as js",
-        f"text = '1.5'\nlargest = np.ones({MAX_ELEMENTS})\ntoo_large = np.ones({MAX_ELEMENTS + 1})",
+        f"text = '1.5'\nlargest = np.ones({MAX_ELEMENTS})\ntoo_large = np.ones({MAX_ELEMENTS + 1})\n"
+        "cplx = np.array([1 + 2j])\nnothing = None",
+        "import os\nos.symlink('/etc/hostname', 'a_link')  # a link is no file of the notebook's",
         "raise ValueError('c' * 1000)",
         "def long_error(x):\n    raise ValueError('f' * 1000)",
         "def in_a_thread(work):\n    t = threading.Thread(target=work)\n    t.start()\n    t.join()",
@@ -390,8 +396,10 @@ def test_what_the_server_sends_back_for_odd_values_long_errors_and_threads(start
         "def thread_off_limits(x):\n    out = {}\n    in_a_thread(lambda: out.update(tau=js.ct_joint_torque()))\n"
         "    return out['tau']  # never stored: KeyError",
     )
-    row = judge.grade(spec(**dict.fromkeys(names, 1)), cells, SEED, start)
+    row = judge.grade(spec(**dict.fromkeys([*names, "nothing"], 1)), cells, SEED, start)
     messages = row["messages"]
+    assert messages["nothing"] == "None" and messages["cplx"].startswith("cplx returned complex numbers"), messages
+    assert not any("a_link" in note for note in row["notes"]), row["notes"]
     assert messages["text"] == "text is a value of type str, expected numbers", messages
     assert messages["largest"] == f"({MAX_ELEMENTS},) {MAX_ELEMENTS}", messages
     assert (
@@ -429,3 +437,25 @@ def test_colabs_own_modules_import_as_stand_ins_and_the_notebook_runs_on(start, 
     (note,) = row["notes"]
     assert note.startswith("cell 4 ('import a_module_nobody_has') raised ModuleNotFoundError: "), note
     assert note.endswith(f"({judge.MISSING_MODULE_ADVICE})"), note
+
+
+def test_a_cell_kept_from_its_cpu_by_other_work_is_not_counted_as_waiting(start, checks):
+    """The cell pins itself and two spinning processes to one CPU, so that it queues for it two
+    thirds of the time: it still meets its CPU limit, not its waiting limit (waiting counts only
+    while it could not run at all)."""
+    checks.update(c_double=check_double)
+    crowded = (
+        "import os, subprocess, sys, time\n"
+        "cpu = min(os.sched_getaffinity(0))\n"
+        "os.sched_setaffinity(0, {cpu})\n"
+        "spin = f'import os\\nos.sched_setaffinity(0, {{{cpu}}})\\nwhile True:\\n    pass'\n"
+        "others = [subprocess.Popen([sys.executable, '-c', spin]) for _ in range(2)]\n"
+        "time.sleep(0.2)\n"
+        "t0 = time.process_time()\n"
+        "while time.process_time() - t0 < 5:\n"
+        "    pass"
+    )
+    budget = judge.Budget(cell=1.0, idle=0.6, run=20.0, run_idle=20.0)
+    row = judge.grade(spec(c_double=2), notebook(crowded, "def double(x):\n    return 2 * x"), SEED, start, budget)
+    assert row["notes"] == ["cell 1 ('import os, subprocess, sys, time') timed out (cpu)"], row["notes"]
+    assert row["scores"] == {"c_double": 2.0}
