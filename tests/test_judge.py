@@ -2,7 +2,8 @@
 
 The batch runs it in its worker processes (``tests/test_grading.py``); here each rule of the
 row it returns is seen on its own: the points of each check, the notes, a check that breaks,
-a notebook that cannot be read, one that ends its own process, and the wall-clock backstop.
+a notebook that cannot be read, one that ends its own process, each limit of the budget, the
+wall-clock backstop, what the sandbox's server sends back, and the judge's reading of /proc.
 """
 
 import os
