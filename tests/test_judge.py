@@ -383,8 +383,9 @@ def test_what_the_server_sends_back_for_odd_values_long_errors_and_threads(start
         return passed("nothing", f"{probe.get('nothing')}")
 
     values = ("text", "largest", "too_large", "cplx")
-    names = [*values, "long_error", "thread_error", "thread_off_limits"]
+    names = [*values, "long_error", "thread_error", "thread_off_limits", "thread_off_limits_text"]
     checks.update({name: (read if name in values else call)(name) for name in names}, nothing=read_none)
+    checks["not_a_function"] = call("text")
     cells = notebook(
         "import threading\nimport numpy as np\nimport labsupport.controllers.joint_space as js",
         f"text = '1.5'\nlargest = np.ones({MAX_ELEMENTS})\ntoo_large = np.ones({MAX_ELEMENTS + 1})\n"
@@ -399,8 +400,10 @@ def test_what_the_server_sends_back_for_odd_values_long_errors_and_threads(start
         "def thread_error(x):\n    in_a_thread(lambda: 1 / 0)\n    return 2 * x",
         "def thread_off_limits(x):\n    out = {}\n    in_a_thread(lambda: out.update(tau=js.ct_joint_torque()))\n"
         "    return out['tau']  # never stored: KeyError",
+        "def thread_off_limits_text(x):\n    out = {}\n    in_a_thread(lambda: out.update(tau=js.ct_joint_torque()))\n"
+        "    return out.get('tau', 'no torque')  # text, not numbers",
     )
-    row = judge.grade(spec(**dict.fromkeys([*names, "nothing"], 1)), cells, SEED, start)
+    row = judge.grade(spec(**dict.fromkeys([*names, "nothing", "not_a_function"], 1)), cells, SEED, start)
     messages = row["messages"]
     assert messages["nothing"] == "None" and messages["cplx"].startswith("cplx returned complex numbers"), messages
     (files,) = [note for note in row["notes"] if note.startswith("the notebook wrote files: ")]
@@ -415,6 +418,9 @@ def test_what_the_server_sends_back_for_odd_values_long_errors_and_threads(start
     assert "f" * 301 not in messages["long_error"], messages
     assert f'raised ValueError: "{"c" * 200}"' in row["notes"][0] and "c" * 201 not in row["notes"][0], row["notes"]
     assert messages["thread_error"] == "2", messages  # the thread's ZeroDivisionError was not the call's
+    assert messages["not_a_function"] == "text should be a function, but it is of type str", messages
+    off_limits = "labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO"
+    assert off_limits in messages["thread_off_limits_text"], messages
     assert (
         "labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO"
         in messages["thread_off_limits"]
