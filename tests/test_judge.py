@@ -383,7 +383,7 @@ def test_what_the_server_sends_back_for_odd_values_long_errors_and_threads(start
         return passed("nothing", f"{probe.get('nothing')}")
 
     values = ("text", "largest", "too_large", "cplx")
-    names = [*values, "long_error", "thread_error", "thread_off_limits", "thread_off_limits_text"]
+    names = [*values, "long_error", "thread_error", "thread_off_limits", "thread_off_limits_text", "thread_unneeded"]
     checks.update({name: (read if name in values else call)(name) for name in names}, nothing=read_none)
     checks["not_a_function"] = call("text")
     cells = notebook(
@@ -402,6 +402,7 @@ def test_what_the_server_sends_back_for_odd_values_long_errors_and_threads(start
         "    return out['tau']  # never stored: KeyError",
         "def thread_off_limits_text(x):\n    out = {}\n    in_a_thread(lambda: out.update(tau=js.ct_joint_torque()))\n"
         "    return out.get('tau', 'no torque')  # text, not numbers",
+        "def thread_unneeded(x):\n    in_a_thread(js.ct_joint_torque)\n    return 3 * x  # the right answer without it",
     )
     row = judge.grade(spec(**dict.fromkeys([*names, "nothing", "not_a_function"], 1)), cells, SEED, start)
     messages = row["messages"]
@@ -421,6 +422,7 @@ def test_what_the_server_sends_back_for_odd_values_long_errors_and_threads(start
     assert messages["not_a_function"] == "text should be a function, but it is of type str", messages
     off_limits = "labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO"
     assert off_limits in messages["thread_off_limits_text"], messages
+    assert messages["thread_unneeded"] == "3", messages  # the off-limits call failed, and the answer owes it nothing
     assert (
         "labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO"
         in messages["thread_off_limits"]
