@@ -472,3 +472,20 @@ def test_a_cell_kept_from_its_cpu_by_other_work_is_not_counted_as_waiting(start,
     row = judge.grade(spec(c_double=2), notebook(crowded, "def double(x):\n    return 2 * x"), SEED, start, budget)
     assert row["notes"] == ["cell 1 ('import os, subprocess, sys, time') timed out (cpu)"], row["notes"]
     assert row["scores"] == {"c_double": 2.0}
+
+
+def test_the_cells_cpu_time_together_counts_from_the_processs_start(start, checks):
+    """The run's CPU budget includes what the server used to start (Python, NumPy, MuJoCo,
+    IPython), as the judge's own watch counts it: with 3 s for the run, a cell that brings the
+    process's CPU time to 2 s runs to its end, and the next, which would bring it to 3.4 s, is
+    stopped. Counted from the first cell instead, the second would end too, whenever the start
+    took more than 0.2 s of CPU time (it takes more on any machine)."""
+    checks.update(c_double=check_double)
+    up_to = "import time\nwhile time.process_time() < {seconds}:\n    pass"
+    cells = notebook(up_to.format(seconds=2.0), up_to.format(seconds=3.4), "def double(x):\n    return 2 * x")
+    row = judge.grade(spec(c_double=2), cells, SEED, start, judge.Budget(cell=10.0, run=3.0))
+    assert row["notes"] == [
+        "cell 2 ('import time') timed out (cpu of all cells together)",
+        "cell 3 ('def double(x):') not run, nor any cell after it (the cells had used up their cpu time together)",
+        "c_double: double is not defined in the notebook (its cell was deleted, renamed or failed, or never ran)",
+    ], row["notes"]
