@@ -442,19 +442,19 @@ def _decode(name: str, answer: dict, call: bool = False):
         raise StudentError(
             f"{name} is not defined in the notebook (its cell was deleted, renamed or failed, or never ran)"
         )
+    altered = f"{name}: {ALTERED_ANSWER}"
     kind = answer.get("type")
-    if kind is not None and not (isinstance(kind, str) and kind):  # the sandbox names a type as text
-        raise StudentError(f"{name}: {ALTERED_ANSWER}")
+    typed = isinstance(kind, str) and kind != ""  # the sandbox names a type as text, for every value not numbers
+    if (kind is not None or answer.get("not_callable")) and not typed:
+        raise StudentError(altered)
     if answer.get("not_callable"):
-        if not kind:  # the sandbox names the type of a value that is not a function
-            raise StudentError(f"{name}: {ALTERED_ANSWER}")
         raise StudentError(not_a_function_message(name, kind))
     if answer.get("timeout"):
         why = "used too much CPU time" if answer["timeout"] == "cpu" else "waited too long"
         raise StudentTimeout(f"{name} did not return: it {why}")
     if "raised" in answer:
         if not isinstance(answer["raised"], str):  # the sandbox writes an error as text
-            raise StudentError(f"{name}: {ALTERED_ANSWER}")
+            raise StudentError(altered)
         raise StudentError(raised_text(name, answer["raised"]))
     if answer.get("none"):
         return None
@@ -462,13 +462,13 @@ def _decode(name: str, answer: dict, call: bool = False):
         raise StudentError(complex_message(name))
     if "array" in answer:
         if "shape" not in answer:  # the sandbox sends every array with its shape
-            raise StudentError(f"{name}: {ALTERED_ANSWER}")
+            raise StudentError(altered)
         try:
             return np.asarray(answer["array"], dtype=float).reshape(answer["shape"])
         except (TypeError, ValueError):
             raise StudentError(f"{name} returned something unreadable") from None
-    if not kind:  # the sandbox names the type of every value that is not numbers
-        raise StudentError(f"{name}: {ALTERED_ANSWER}")
+    if not typed:
+        raise StudentError(altered)
     raise StudentError(f"{name} {'returned' if call else 'is'} a value of type {kind}, expected numbers")
 
 
