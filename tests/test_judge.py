@@ -12,6 +12,7 @@ import signal
 import subprocess
 import sys
 import time
+import types
 
 import nbformat
 import numpy as np
@@ -19,7 +20,7 @@ import pytest
 
 import labsupport.grading
 from labsupport.grading.feedback import State, failed, not_implemented, passed
-from labsupport.instructor import isolation, judge
+from labsupport.instructor import isolation, judge, sandbox
 
 SEED = 3
 
@@ -355,8 +356,45 @@ def test_past_what_the_cells_have_together_no_later_cell_runs(start, checks, rea
     row = judge.grade(spec(c_double=2), cells, SEED, start, budget)
     *stopped, unrun = [note.split(") ", 1)[1] for note in row["notes"] if note.startswith("cell ")]
     assert stopped and set(stopped) <= {f"timed out ({reason})", f"timed out ({reason} of all cells together)"}
+    assert f"timed out ({reason} of all cells together)" not in stopped[:-1], stopped  # one such cell at most: the last
     assert unrun == f"not run, nor any cell after it (the cells had used up their {reason} time together)"
     assert row["scores"] == {"c_double": 0.0} and "double is not defined" in row["messages"]["c_double"]
+
+
+class TimerOneTickEarly(sandbox.Watch):
+    """A watch whose CPU timer fires when its own clock reads 4 ms short of the limit, as the
+    kernel's timer may against ``time.process_time`` on a crowded machine. Each cell's source is
+    the CPU time it needs."""
+
+    def arm(self, cpu, idle):
+        self.limit, self.used, self.reason = max(cpu, 0.01), 0.0, ""  # the sandbox's smallest timer
+
+    def disarm(self):
+        pass
+
+    def cpu(self):
+        return self.used
+
+    def idle(self):
+        return 0.0
+
+    def run_cell(self, src):
+        if float(src) > self.limit:
+            self.used, self.reason = self.limit - 0.004, "cpu"
+            return types.SimpleNamespace(error_in_exec=sandbox.CellTimeout(), error_before_exec=None)
+        self.used = float(src)
+        return types.SimpleNamespace(error_in_exec=None, error_before_exec=None)
+
+
+def test_the_cell_stopped_at_what_the_cells_had_left_is_the_last_that_runs():
+    """3 s of CPU time for each cell, 7 s for all: the third cell is stopped at the 1 s left,
+    and the fourth does not run, even when the timer fired a hair before the clock read 1 s.
+    (The fourth was given the sliver left, and named as stopped too.)"""
+    watch = TimerOneTickEarly()
+    left = {"cpu": 7.0, "idle": float("inf")}
+    errors = sandbox.run_cells(["3", "3", "3", "3", "3"], watch.run_cell, watch, {"cpu": 4.0, "idle": 5.0}, left)
+    assert errors == [[2, sandbox.timed_out("cpu", in_all=True)], [3, sandbox.not_run("cpu")]]
+    assert left["cpu"] == 0
 
 
 def test_what_the_server_sends_back_for_odd_values_long_errors_and_threads(start, checks):
@@ -364,7 +402,6 @@ def test_what_the_server_sends_back_for_odd_values_long_errors_and_threads(start
     whole, one element more is refused by its size; a long error is cut (200 characters for a
     cell, 300 for a call); an error in a thread the call started counts only where it is an
     off-limits call of labsupport."""
-    from labsupport.instructor.sandbox import MAX_ELEMENTS
 
     def read(name):
         def check(probe, seed):
@@ -388,7 +425,7 @@ def test_what_the_server_sends_back_for_odd_values_long_errors_and_threads(start
     checks["not_a_function"] = call("text")
     cells = notebook(
         "import threading\nimport numpy as np\nimport labsupport.controllers.joint_space as js",
-        f"text = '1.5'\nlargest = np.ones({MAX_ELEMENTS})\ntoo_large = np.ones({MAX_ELEMENTS + 1})\n"
+        f"text = '1.5'\nlargest = np.ones({sandbox.MAX_ELEMENTS})\ntoo_large = np.ones({sandbox.MAX_ELEMENTS + 1})\n"
         "cplx = np.array([1 + 2j])\nnothing = None",
         "import os\nos.symlink('/etc/hostname', 'a_link')  # a link is no file of the notebook's\n"
         "for folder in ('runs', '.cache/pip', '__pycache__'):  # the last two: tools' caches, not listed\n"
@@ -410,10 +447,10 @@ def test_what_the_server_sends_back_for_odd_values_long_errors_and_threads(start
     (files,) = [note for note in row["notes"] if note.startswith("the notebook wrote files: ")]
     assert files.startswith('the notebook wrote files: "/home/student/runs/out.csv" (in its'), files
     assert messages["text"] == "text is a value of type str, expected numbers", messages
-    assert messages["largest"] == f"({MAX_ELEMENTS},) {MAX_ELEMENTS}", messages
+    assert messages["largest"] == f"({sandbox.MAX_ELEMENTS},) {sandbox.MAX_ELEMENTS}", messages
     assert (
         messages["too_large"]
-        == f"too_large is a value of type array of {MAX_ELEMENTS + 1} numbers (too large), expected numbers"
+        == f"too_large is a value of type array of {sandbox.MAX_ELEMENTS + 1} numbers (too large), expected numbers"
     )
     assert messages["long_error"].startswith("long_error raised ValueError: " + "f" * 300), messages
     assert "f" * 301 not in messages["long_error"], messages

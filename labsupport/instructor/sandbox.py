@@ -31,6 +31,7 @@ nothing the student returns is ever unpickled by the grader.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.abc
 import importlib.machinery
@@ -48,6 +49,8 @@ MAX_ELEMENTS = 10_000
 MAX_LISTED = 20
 #: Files MuJoCo itself writes (its warning log): never the notebook's doing.
 LIBRARY_FILES = ("MUJOCO_LOG.TXT",)
+
+process_time = time.process_time  # the notebook may replace time.process_time; not this one
 
 
 def timed_out(reason: str, in_all: bool = False) -> str:
@@ -72,6 +75,7 @@ class Watch:
     def __init__(self):
         self.idle_limit = None
         self.start = None
+        self.cpu0 = 0.0
         self.reason = ""
 
     @staticmethod
@@ -82,14 +86,20 @@ class Watch:
                 cpu, queued = f.read().split()[:2]
             return (int(cpu) + int(queued)) * 1e-9
         except (OSError, ValueError):
-            return time.process_time()
+            return process_time()
 
     def idle(self) -> float:
+        """Time spent waiting since :meth:`arm` [s]."""
         wall0, busy0 = self.start
         return (time.monotonic() - wall0) - (self.running_and_queued() - busy0)
 
+    def cpu(self) -> float:
+        """CPU time used since :meth:`arm` [s]."""
+        return process_time() - self.cpu0
+
     def arm(self, cpu: float, idle: float) -> None:
         self.idle_limit = idle
+        self.cpu0 = process_time()
         self.start = (time.monotonic(), self.running_and_queued())
         signal.setitimer(signal.ITIMER_PROF, max(cpu, 0.01))
         signal.setitimer(signal.ITIMER_REAL, 0.5, 0.5)
@@ -237,6 +247,42 @@ class ColabStandIn(importlib.abc.MetaPathFinder, importlib.abc.Loader):
         pass
 
 
+def run_cells(cells, run_cell, watch: Watch, per_cell: dict, left: dict) -> list:
+    """Run ``cells`` in order with ``run_cell`` (IPython's), each within ``per_cell`` seconds of
+    CPU and waiting time (``{"cpu": s, "idle": s}``), and all of them within ``left``, which they
+    spend as they run. A cell that meets what the cells had left is stopped "of all cells
+    together", and the cells after it do not run. Returns the errors, ``[[cell, text], ...]``."""
+    errors = []
+    for k, src in enumerate(cells):
+        used_up = [reason for reason, seconds in left.items() if seconds <= 0]
+        if used_up:
+            errors.append([k, not_run(used_up[0])])
+            break
+        limit = {reason: min(per_cell[reason], left[reason]) for reason in left}
+        in_all = {reason: limit[reason] < per_cell[reason] for reason in limit}  # which limit binds
+        stopped = None
+        try:
+            watch.arm(limit["cpu"], limit["idle"])
+            result = run_cell(src)
+            watch.disarm()
+            err = result.error_in_exec or result.error_before_exec
+            if isinstance(err, CellTimeout):
+                stopped = watch.reason
+            elif err is not None:
+                errors.append([k, _error_text(err, 200)])
+        except CellTimeout:
+            stopped = watch.reason
+        finally:
+            watch.disarm()
+            left["cpu"] -= watch.cpu()
+            left["idle"] -= watch.idle()
+        if stopped is not None:
+            errors.append([k, timed_out(stopped, in_all.get(stopped, False))])
+            if in_all.get(stopped, False):  # the kernel's CPU timer and this clock may differ by a tick;
+                left[stopped] = 0  # the cells' common limit is spent all the same
+    return errors
+
+
 def main() -> None:
     # keep the pipes to the judge private; whatever the notebook prints goes nowhere
     rpc_in = os.fdopen(os.dup(0), "r", encoding="utf-8")
@@ -258,10 +304,10 @@ def main() -> None:
     from labsupport.grading.rules import MARKER
     from labsupport.plants import load_model
 
-    process_time = time.process_time  # the notebook may replace time.process_time; not this one
     model, _ = load_model("spatial_3r")
     data = mujoco.MjData(model)
     shell = InteractiveShell.instance()
+    run_cell = functools.partial(shell.run_cell, store_history=False, silent=True)
     # A plotting backend is the notebook's display, which is never graded: %matplotlib (inline,
     # widget, any other) and %pylab keep the sandbox's Agg. A plain IPython shell has no GUI loop
     # and raised at `%matplotlib inline`, so the rest of its cell (often the imports) never ran.
@@ -312,33 +358,10 @@ def main() -> None:
         idle = float(req.get("idle", 30))
         if op == "run":
             before = _snapshot()
-            errors = []
             per_cell = {"cpu": float(req.get("cell_cpu", 60)), "idle": idle}
             # CPU time counted from the process's start, imports included, as the judge counts it
             left = {"cpu": float(req.get("run_cpu", "inf")) - process_time(), "idle": float(req.get("run_idle", "inf"))}
-            for k, src in enumerate(req["cells"]):
-                used_up = [reason for reason, seconds in left.items() if seconds <= 0]
-                if used_up:
-                    errors.append([k, not_run(used_up[0])])
-                    break
-                limit = {reason: min(per_cell[reason], left[reason]) for reason in left}
-                in_all = {reason: limit[reason] < per_cell[reason] for reason in limit}  # which limit binds
-                cpu0 = process_time()
-                try:
-                    watch.arm(limit["cpu"], limit["idle"])
-                    result = shell.run_cell(src, store_history=False, silent=True)
-                    watch.disarm()
-                    err = result.error_in_exec or result.error_before_exec
-                    if isinstance(err, CellTimeout):
-                        errors.append([k, timed_out(watch.reason, in_all.get(watch.reason, False))])
-                    elif err is not None:
-                        errors.append([k, _error_text(err, 200)])
-                except CellTimeout:
-                    errors.append([k, timed_out(watch.reason, in_all.get(watch.reason, False))])
-                finally:
-                    watch.disarm()
-                    left["cpu"] -= process_time() - cpu0
-                    left["idle"] -= watch.idle()
+            errors = run_cells(req["cells"], run_cell, watch, per_cell, left)
             changed = _changed(before, _snapshot())
             answer(nonce, {"errors": errors, "patched": changed[:20]})
         elif op in ("call", "get"):
