@@ -361,6 +361,21 @@ def test_past_what_the_cells_have_together_no_later_cell_runs(start, checks, rea
     assert row["scores"] == {"c_double": 0.0} and "double is not defined" in row["messages"]["c_double"]
 
 
+def test_the_notebook_can_neither_write_into_the_graders_channel_nor_read_from_it(start, checks):
+    """The server's own descriptors 0 and 1 lead to /dev/null before any cell runs: half a line
+    written to descriptor 1 (as a C library or a shell command would print) cannot run into the
+    server's next answer, and a thread reading descriptor 0 steals no request of the judge's."""
+    checks.update(c_double=check_double)
+    cells = notebook(
+        "import os, threading\nos.write(1, b'{\"nonce\": ')\nos.system('printf half')",
+        "threading.Thread(target=lambda: os.read(0, 1 << 16), daemon=True).start()",
+        "def double(x):\n    return 2 * x",
+    )
+    row = judge.grade(spec(c_double=2), cells, SEED, start)
+    assert row["status"] == "graded" and row["scores"] == {"c_double": 2.0}, row
+    assert row["notes"] == [], row["notes"]
+
+
 class TimerOneTickEarly(sandbox.Watch):
     """A watch whose CPU timer fires when its own clock reads 4 ms short of the limit, as the
     kernel's timer may against ``time.process_time`` on a crowded machine. Each cell's source is
