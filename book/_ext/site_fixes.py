@@ -24,9 +24,11 @@ part of them is reachable by landmark.
   ``:.1e`` read as Python prints it, ``1.4e-09``. It becomes the formula
   :math:`1.4 \\times 10^{-9}`, typeset (and spoken) like the page's other formulas, in bold
   like every other glued number.
-* **No icon on the home page's redirect.** The site's root ``index.html`` only sends the browser
-  on to the first page, and names no icon, so the browser asked the server for
-  ``/favicon.ico`` (a 404) before leaving it. It names the course's icon, as every page does.
+* **A bare redirect at the site's root.** The root ``index.html`` was one ``<meta>`` tag that
+  sends the browser on to the first page: no language, no title, no icon (so the browser asked
+  the server for ``/favicon.ico``, a 404), and a blank page where a browser does not follow such
+  redirects (a reader may turn them off). It becomes a whole page: the book's language and
+  title, the course's icon, and a link to the first page for that reader.
 * **Punctuation alone at the start of a line.** A browser may break a line between an inline
   formula (MathJax draws it as one inline box) and the comma, colon or bracket written against
   it, so a line could begin with a lone ``,`` or end with a lone ``(``. Each inline formula with
@@ -42,6 +44,7 @@ part of them is reachable by landmark.
 
 from __future__ import annotations
 
+import html as html_text
 import re
 from pathlib import Path
 
@@ -56,6 +59,8 @@ _INLINE_MATH = re.compile(r'([(\[]?)(<span class="math notranslate nohighlight">
 _GLUED_EXPONENT = re.compile(r'<span class="pasted-text">(-?\d+(?:\.\d+)?)e([-+]?)(\d+)</span>')
 #: A word of inline code (docutils writes each as a ``span.pre``) that holds a hyphen.
 _HYPHENATED_CODE = re.compile(r'<span class="pre">([^<]*-[^<]*)</span>')
+#: The redirect Jupyter Book (or sphinx-external-toc) writes as the root ``index.html``.
+_REDIRECT = re.compile(r'<meta http-equiv="Refresh" content="0; url=([^"]+)" />')
 _FONTAWESOME_JS = re.compile(r'\s*<script defer src="[^"]*_static/scripts/fontawesome\.js[^"]*"></script>')
 
 
@@ -115,19 +120,25 @@ def fix_built_pages(app, exc):
         lighter = _HYPHENATED_CODE.sub(r'<span class="pre keep-whole">\1</span>', lighter)
         if lighter != html:
             page.write_text(lighter, encoding="utf-8")
-    _icon_on_the_redirect(out / "index.html", app.config.html_favicon)
+    _complete_the_redirect(out / "index.html", app.config)
     for name in ("fontawesome.js", "fontawesome.js.map"):
         (out / "_static" / "scripts" / name).unlink(missing_ok=True)
 
 
-def _icon_on_the_redirect(redirect: Path, favicon: str | None) -> None:
-    """Name the course's icon (which Sphinx copies into ``_static``) in the root redirect page."""
-    if not favicon or not redirect.is_file():
+def _complete_the_redirect(redirect: Path, config) -> None:
+    """Make the root redirect page a whole page (WCAG 2.4.2 and 3.1.1): the book's language and
+    title, its icon (which Sphinx copies into ``_static``), and a link to the first page."""
+    found = _REDIRECT.search(redirect.read_text(encoding="utf-8")) if redirect.is_file() else None
+    if found is None:
         return
-    html = redirect.read_text(encoding="utf-8")
-    if 'http-equiv="Refresh"' in html and 'rel="icon"' not in html:
-        link = f'<link rel="icon" href="_static/{Path(favicon).name}" />\n'
-        redirect.write_text(link + html, encoding="utf-8")
+    url, title = found[1], html_text.escape(config.html_title or config.project)
+    icon = f'<link rel="icon" href="_static/{Path(config.html_favicon).name}" />\n' if config.html_favicon else ""
+    redirect.write_text(
+        f'<!DOCTYPE html>\n<html lang="{config.language or "en"}">\n<head>\n<meta charset="utf-8" />\n'
+        f"<title>{title}</title>\n{icon}{found[0]}\n</head>\n"
+        f'<body>\n<main>\n<p>The course starts at <a href="{url}">{title}</a>.</p>\n</main>\n</body>\n</html>\n',
+        encoding="utf-8",
+    )
 
 
 def setup(app):

@@ -10,8 +10,10 @@ Reflow (1.4.10), which axe does not check, is tested on phone-sized windows.
 
 from __future__ import annotations
 
+import re
+
 import pytest
-from sitetools import SUMMARY, VIEWPORT, dump_json, toc_pages
+from sitetools import SUMMARY, VIEWPORT, book_config, dump_json, require_site, toc_pages
 
 WCAG_TAGS = ["wcag2a", "wcag2aa", "wcag21a", "wcag21aa"]
 #: The WCAG rules, and one best practice beyond them: ``region``, every part of a page in a
@@ -59,6 +61,32 @@ def test_page_meets_wcag21_aa(browser, server, axe, page, scheme):
     dump_json(f"axe__{page.replace('/', '__')}__{scheme}.json", violations)
     SUMMARY.append(f"axe WCAG 2.1 AA {page} ({scheme}): {len(violations)} violations")
     assert not violations, f"{page}: " + " | ".join(_describe(v) for v in violations)
+
+
+def test_the_root_page_is_a_whole_page_for_a_reader_whose_browser_stays_on_it(browser, server, axe):
+    """The site's root ``index.html`` sends the browser on to the first page. Where the browser
+    does not follow such a redirect (a reader may turn them off), the page itself shows: in the
+    book's language, under the course's title, with a link to the first page, and with no WCAG
+    violation. It was one bare ``<meta>`` tag: no language, no title, a blank page."""
+    root = (require_site() / "index.html").read_text(encoding="utf-8")
+    first = f"{toc_pages()[0]}.html"
+    refresh = f'<meta http-equiv="Refresh" content="0; url={first}" />'
+    assert refresh in root, root
+    stays = root.replace(refresh, "")  # as a browser that does not follow the redirect shows it
+    context = browser.new_context(viewport=VIEWPORT)
+    try:
+        tab = context.new_page()
+        tab.route(f"{server}/", lambda route: route.fulfill(body=stays, content_type="text/html"))
+        tab.goto(f"{server}/", wait_until="load")
+        assert tab.title() == book_config()["title"]
+        assert tab.get_attribute("html", "lang") == "en"
+        assert tab.locator("main a").get_attribute("href") == first
+        assert re.fullmatch(r"The course starts at .+\.", tab.inner_text("main"))
+        results = axe.run(tab, options=AXE_OPTIONS)
+    finally:
+        context.close()
+    violations = results.response["violations"]
+    assert not violations, "index.html: " + " | ".join(_describe(v) for v in violations)
 
 
 @pytest.mark.parametrize("width", (320, 390))
