@@ -402,9 +402,9 @@ class TimerOneTickEarly(sandbox.Watch):
 
 
 def test_the_cell_stopped_at_what_the_cells_had_left_is_the_last_that_runs():
-    """3 s of CPU time for each cell, 7 s for all: the third cell is stopped at the 1 s left,
-    and the fourth does not run, even when the timer fired a hair before the clock read 1 s.
-    (The fourth was given the sliver left, and named as stopped too.)"""
+    """Cells that each need 3 s of CPU time, with 4 s for each and 7 s for all: the third is
+    stopped at the 1 s left, and the fourth does not run, even when the timer fired a hair
+    before the clock read 1 s. (The fourth was given the sliver left, and named as stopped too.)"""
     watch = TimerOneTickEarly()
     left = {"cpu": 7.0, "idle": float("inf")}
     errors = sandbox.run_cells(["3", "3", "3", "3", "3"], watch.run_cell, watch, {"cpu": 4.0, "idle": 5.0}, left)
