@@ -28,6 +28,9 @@ from IPython.display import Markdown, display
 MIN_ALT_WORDS = 5
 #: A line at least this wide [pt] (a reference drawn as a band) counts as a style of its own.
 WIDE_LINE = 3.0
+#: Pixels of a figure's PNG per pixel it is shown at (CSS pixel): two, so that its labels stay
+#: sharp on phones and high-density screens, and when a reader zooms in on them.
+PIXEL_DENSITY = 2
 
 
 def glue(name: str, value: Any, display: bool = False) -> None:
@@ -116,8 +119,9 @@ def show_figure(figure, alt: str) -> None:
     Write ``alt`` in the notebook from the values the figure plots (an f-string), saying what the
     axes are, what each curve does and its key numbers. The output is one ``<img>`` holding the
     PNG and ``alt``, so the built page, Jupyter and Colab all carry it (with the PNG itself and
-    ``alt`` as plain text for front ends without HTML). A Matplotlib figure is closed once shown,
-    so the inline backend does not show it again.
+    ``alt`` as plain text for front ends without HTML). A Matplotlib figure is drawn as the inline
+    backend draws it, with :data:`PIXEL_DENSITY` times the pixels each way, and shown at the
+    inline backend's size; it is closed once shown, so the inline backend does not show it again.
 
     Raises:
         ValueError: ``alt`` is shorter than :data:`MIN_ALT_WORDS` words or is a file name; or two
@@ -129,6 +133,7 @@ def show_figure(figure, alt: str) -> None:
         import mediapy
 
         png = mediapy.compress_image(figure)
+        density = 1  # a rendered frame is shown pixel for pixel
     else:
         import matplotlib.pyplot as plt
 
@@ -139,16 +144,20 @@ def show_figure(figure, alt: str) -> None:
             )
         _refuse_colour_only_curves(figure)
         buffer = io.BytesIO()
-        figure.savefig(buffer, format="png", bbox_inches="tight")  # as the inline backend draws it
+        # as the inline backend draws it, at PIXEL_DENSITY times as many pixels each way
+        figure.savefig(buffer, format="png", bbox_inches="tight", dpi=PIXEL_DENSITY * figure.dpi)
         plt.close(figure)
         png = buffer.getvalue()
+        density = PIXEL_DENSITY
     data = base64.b64encode(png).decode("ascii")
-    width = int.from_bytes(png[16:20], "big")  # the PNG header's width, in pixels
+    width = round(int.from_bytes(png[16:20], "big") / density)  # the PNG header's width, in CSS pixels
     html = (
         f'<img src="data:image/png;base64,{data}" alt="{escape(text)}" width="{width}" '
         'style="max-width: 100%; height: auto">'
     )
-    display({"text/html": html, "image/png": data, "text/plain": text}, raw=True)
+    display(
+        {"text/html": html, "image/png": data, "text/plain": text}, raw=True, metadata={"image/png": {"width": width}}
+    )
 
 
 def _refuse_colour_only_curves(figure) -> None:

@@ -2,6 +2,7 @@
 
 import base64
 import dataclasses
+import io
 
 import matplotlib
 
@@ -19,7 +20,11 @@ ALT = "Speed in rad/s rising to 10 rad/s within 5 s, the simulation on the close
 @pytest.fixture()
 def shown(monkeypatch):
     outputs = []
-    monkeypatch.setattr(book, "display", lambda bundle, raw: outputs.append(bundle))
+
+    def display(bundle, raw, metadata):
+        outputs.append({**bundle, "metadata": metadata})
+
+    monkeypatch.setattr(book, "display", display)
     return outputs
 
 
@@ -41,14 +46,35 @@ def test_the_image_carries_the_alt_and_the_png(shown):
     assert 'alt="Speed in rad/s rising to 10 rad/s' in html and "&lt;script&gt;&quot;&amp;" in html
     assert "<script>" not in html
     assert bundle["text/plain"] == ALT + ' <script>"&'
-    assert f'width="{int.from_bytes(png[16:20], "big")}"' in html
+    assert f'width="{round(int.from_bytes(png[16:20], "big") / book.PIXEL_DENSITY)}"' in html
     assert not plt.fignum_exists(fig.number)  # closed: the inline backend will not show it again
 
 
+def png_width(bundle) -> int:
+    return int.from_bytes(base64.b64decode(bundle["image/png"])[16:20], "big")
+
+
+def test_a_figure_is_shown_at_the_inline_backends_size_with_twice_its_pixels(shown):
+    """The page shows a figure as wide as a notebook's inline backend would (``width``), drawn
+    with twice the pixels each way, so its labels stay sharp on a phone's screen and zoomed in."""
+    with plt.rc_context({"figure.dpi": 90}):  # as the notebooks draw them
+        fig = two_curves(linestyle="--")
+    inline = io.BytesIO()
+    fig.savefig(inline, format="png", bbox_inches="tight")
+    inline_width = int.from_bytes(inline.getvalue()[16:20], "big")
+    book.show_figure(fig, ALT)
+    (bundle,) = shown
+    assert abs(png_width(bundle) - 2 * inline_width) <= 2, (png_width(bundle), inline_width)
+    assert abs(bundle["metadata"]["image/png"]["width"] - inline_width) <= 1
+    assert f'width="{bundle["metadata"]["image/png"]["width"]}"' in bundle["text/html"]
+
+
 def test_a_rendered_frame_is_shown_too(shown):
+    """A rendered frame is shown pixel for pixel."""
     frame = np.zeros((24, 32, 3), dtype=np.uint8)
     book.show_figure(frame, ALT)
     assert base64.b64decode(shown[0]["image/png"])[16:24] == (32).to_bytes(4, "big") + (24).to_bytes(4, "big")
+    assert shown[0]["metadata"] == {"image/png": {"width": 32}} and 'width="32"' in shown[0]["text/html"]
 
 
 @pytest.mark.parametrize(
@@ -207,7 +233,6 @@ def test_the_shared_figures_fit_the_text_column(name, dpi):
     notebook's inline backend saves it (tight box, 0.1 in of padding): the page shows it
     unscaled, so its tick labels and legends keep their size. The circle figure used to be
     961 px wide and Task 1's side-by-side ones 910 px, shown at 78 % and 83 %."""
-    import io
 
     t = np.linspace(0.0, 1.0, 11)
     log = dataclasses.replace(_log(t, 0.1, 2), err=np.zeros((t.size, 2)))

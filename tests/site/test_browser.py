@@ -185,13 +185,15 @@ def test_no_empty_line_under_a_heading(on_every_page, width):
     assert not lone, f"at {width} px these headings have an empty line under them: {lone}"
 
 
-#: ``[natural width, shown width, start of the alt text]`` of every figure a notebook cell shows.
+#: ``[natural width, width drawn for, shown width, start of the alt text]`` of every figure a
+#: notebook cell shows; "drawn for" is the ``width`` the image asks for, in CSS pixels.
 FIGURE_SCALE_JS = r"""async () => {
   const out = [];
   for (const img of document.querySelectorAll('.cell_output img')) {
     img.loading = 'eager';
     try { await img.decode(); } catch (e) {}
-    out.push([img.naturalWidth, img.getBoundingClientRect().width, (img.alt || '').slice(0, 50)]);
+    const asked = Number(img.getAttribute('width')) || img.naturalWidth;
+    out.push([img.naturalWidth, asked, img.getBoundingClientRect().width, (img.alt || '').slice(0, 50)]);
   }
   return out;
 }"""
@@ -200,11 +202,15 @@ FIGURE_SCALE_JS = r"""async () => {
 def test_figures_show_at_their_own_size(on_every_page):
     """On a screen 1280 px wide every figure fits the text column as drawn, so its tick labels
     and legends keep the size Matplotlib gave them (labsupport.plots.column_width); the circle
-    figure of Task 3 and the two-panel figures of Tasks 1, 2 and 4 used to be shrunk to 78-85 %."""
+    figure of Task 3 and the two-panel figures of Tasks 1, 2 and 4 used to be shrunk to 78-85 %.
+    Each Matplotlib figure carries twice the pixels it is shown with (labsupport.book.PIXEL_DENSITY),
+    so it stays sharp on a phone's screen and when zoomed in; rendered frames are shown pixel for pixel."""
     shown = on_every_page(FIGURE_SCALE_JS, 1280)
     assert sum(len(figures) for figures in shown.values()) >= 15, shown  # 17 today, in Tasks 1-4
     shrunk = {
-        page: [f"{alt}...: {n} px shown at {w:.0f} px" for n, w, alt in figures if w < n - 1]
+        page: [f"{alt}...: drawn for {a} px, shown at {w:.0f} px" for n, a, w, alt in figures if w < a - 1]
         for page, figures in shown.items()
     }
     assert not any(shrunk.values()), {page: found for page, found in shrunk.items() if found}
+    dense = [n / a for figures in shown.values() for n, a, w, alt in figures]
+    assert sum(abs(d - 2) < 0.01 for d in dense) >= 15 and all(abs(d - 2) < 0.01 or d == 1 for d in dense), dense
