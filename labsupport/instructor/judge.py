@@ -405,7 +405,7 @@ class SandboxProbe(Probe):
         )
 
     def files(self) -> dict:
-        """What the notebook wrote, changed or deleted in its scratch space (empty if it is not running)."""
+        """What the notebook wrote in its scratch space (empty if it is not running)."""
         if self.proc is None or self.proc.poll() is not None:
             return {}
         try:
@@ -738,18 +738,17 @@ def grade(
     finally:
         probe.stop()
 
-    for label in ("wrote", "changed", "deleted"):
-        listed = _listed(files, label)
-        paths = _paths(listed)
-        if paths:
-            in_home = any(str(p).startswith(f"{isolation.HOME}/") for p in listed)
-            notes.append(
-                f"the notebook {label} files: {', '.join(paths[:5])}"
-                + (" ..." if len(paths) > 5 else "")
-                + " (in its private scratch space, removed after grading"
-                + (HOME_IS_CONTENT if in_home else "")
-                + ")"
-            )
+    listed = _listed(files, "wrote")
+    paths = _paths(listed)
+    if paths:
+        in_home = any(str(p).startswith(f"{isolation.HOME}/") for p in listed)
+        notes.append(
+            f"the notebook wrote files: {', '.join(paths[:5])}"
+            + (" ..." if len(paths) > 5 else "")
+            + " (in its private scratch space, removed after grading"
+            + (HOME_IS_CONTENT if in_home else "")
+            + ")"
+        )
     for name in names:
         if statuses[name] == NOT_IMPLEMENTED:
             notes.append(f"{name}: not implemented yet")

@@ -18,7 +18,7 @@ Requests (each carries a ``nonce`` echoed in the answer):
   student's function; a ``{"state": {...}}`` argument becomes ``(model, data)`` of the 3R arm at
   that state.
 * ``{"op": "get", "name": v}``: the value of a variable.
-* ``{"op": "files"}``: the files the notebook created, changed or deleted in its scratch space.
+* ``{"op": "files"}``: the files the notebook wrote in its scratch space (which starts empty).
 
 Limits count the process's own CPU time (``ITIMER_PROF``) and the time it spends waiting
 without being runnable (wall time minus CPU time minus time spent queued for a CPU, from
@@ -396,12 +396,8 @@ def main() -> None:
             answer(nonce, payload)
         elif op == "files":
             after = _listing(scratch)
-            lists = {
-                "wrote": [f for f in after if f not in files_before],
-                "changed": [f for f in after if f in files_before and after[f] != files_before[f]],
-                "deleted": [f for f in files_before if f not in after],
-            }
-            answer(nonce, {label: sorted(files)[:MAX_LISTED] for label, files in lists.items()})
+            wrote = [f for f, digest in after.items() if files_before.get(f) != digest]  # new or altered
+            answer(nonce, {"wrote": sorted(wrote)[:MAX_LISTED]})
 
 
 if __name__ == "__main__":
