@@ -18,7 +18,8 @@ Requests (each carries a ``nonce`` echoed in the answer):
   student's function; a ``{"state": {...}}`` argument becomes ``(model, data)`` of the 3R arm at
   that state.
 * ``{"op": "get", "name": v}``: the value of a variable.
-* ``{"op": "files"}``: the files the notebook wrote in its scratch space (which starts empty).
+* ``{"op": "files"}``: the files the notebook wrote in its scratch space, new or altered since
+  the server started (the sandbox's scratch starts empty; run without one, ``/dev/shm`` may not).
 
 Limits count the process's own CPU time (``ITIMER_PROF``) and the time it spends waiting
 without being runnable (wall time minus CPU time minus time spent queued for a CPU, from
