@@ -278,8 +278,9 @@ def run_cells(cells, run_cell, watch: Watch, per_cell: dict, left: dict) -> list
             left["cpu"] -= watch.cpu()
             left["idle"] -= watch.idle()
         if stopped is not None:
-            errors.append([k, timed_out(stopped, in_all.get(stopped, False))])
-            if in_all.get(stopped, False):  # the kernel's CPU timer and this clock may differ by a tick;
+            of_all_cells = in_all.get(stopped, False)
+            errors.append([k, timed_out(stopped, of_all_cells)])
+            if of_all_cells:  # the kernel's CPU timer and this clock may differ by a tick;
                 left[stopped] = 0  # the cells' common limit is spent all the same
     return errors
 
