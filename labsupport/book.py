@@ -24,6 +24,8 @@ from typing import Any
 import numpy as np
 from IPython.display import Markdown, display
 
+from labsupport import validate
+
 #: The fewest words a figure's text alternative may have.
 MIN_ALT_WORDS = 5
 #: A line at least this wide [pt] (a reference drawn as a band) counts as a style of its own.
@@ -112,7 +114,7 @@ def text_alternative(alt, what: str = "a figure") -> str:
     return text
 
 
-def show_figure(figure, alt: str) -> None:
+def show_figure(figure, alt: str, *, density: int = 1) -> None:
     """Show ``figure`` (a Matplotlib figure, or an RGB image array such as a rendered frame) with
     ``alt``, its text alternative (WCAG 2.1, success criterion 1.1.1).
 
@@ -122,6 +124,9 @@ def show_figure(figure, alt: str) -> None:
     ``alt`` as plain text for front ends without HTML). A Matplotlib figure is drawn as the inline
     backend draws it, with :data:`PIXEL_DENSITY` times the pixels each way, and shown at the
     inline backend's size; it is closed once shown, so the inline backend does not show it again.
+    An image array is shown with ``density`` of its pixels to each CSS pixel each way: 1 for a
+    frame shown pixel for pixel, :data:`PIXEL_DENSITY` for a picture rendered at twice the size
+    it is shown at (:func:`labsupport.render.show_picture`).
 
     Raises:
         ValueError: ``alt`` is shorter than :data:`MIN_ALT_WORDS` words or is a file name; or two
@@ -133,7 +138,7 @@ def show_figure(figure, alt: str) -> None:
         import mediapy
 
         png = mediapy.compress_image(figure)
-        density = 1  # a rendered frame is shown pixel for pixel
+        density = validate.whole("density", density, 1)
     else:
         import matplotlib.pyplot as plt
 

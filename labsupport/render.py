@@ -25,7 +25,7 @@ import mujoco
 import numpy as np
 
 from labsupport import gl, validate
-from labsupport.book import show_figure, text_alternative
+from labsupport.book import PIXEL_DENSITY, show_figure, text_alternative
 from labsupport.grading import BATCH_ENV
 from labsupport.plots import frame_indices
 from labsupport.sim import Log, site_positions
@@ -278,12 +278,19 @@ def render_picture(
     width: int = 480,
     height: int = 360,
     camera: str | int | None = None,
+    density: int = 1,
 ) -> np.ndarray:
-    """One frame (height, width, 3) of the model in the state ``data`` holds, as its last
-    ``mj_forward`` (or ``mj_kinematics``) left it, seen from ``camera`` (as in
-    :func:`render_run`), with ``path``, points (K, 3) such as a circle to track, drawn as the
-    blue reference trace."""
+    """One frame of the model in the state ``data`` holds, as its last ``mj_forward`` (or
+    ``mj_kinematics``) left it, seen from ``camera`` (as in :func:`render_run`), with ``path``,
+    points (K, 3) such as a circle to track, drawn as the blue reference trace.
+
+    The frame has ``density`` pixels each way for each of the ``width`` x ``height`` it is meant
+    to be shown at, (density·height, density·width, 3), and its trace is as many times as wide,
+    so that shown at that size it looks the same, only sharper.
+    """
     validate.model_and_data(model, data)
+    width, height = validate.whole("width", width, 1), validate.whole("height", height, 1)
+    density = validate.whole("density", density, 1)
     if not data.xmat[0].any():  # the world's orientation, the identity once kinematics ran
         raise ValueError(
             "render_picture: the data holds no kinematics yet, so the picture would be black: run "
@@ -291,11 +298,11 @@ def render_picture(
         )
     camera = _camera_id(model, camera)
     points = None if path is None else _points(path)
-    renderer = make_renderer(model, width, height)
+    renderer = make_renderer(model, density * width, density * height)
     try:
         renderer.update_scene(data, camera=camera)
         if points is not None:
-            add_trace(renderer.scene, points, TARGET_WIDTH, TARGET_RGBA)
+            add_trace(renderer.scene, points, density * TARGET_WIDTH, TARGET_RGBA)
         return renderer.render()
     finally:
         renderer.close()
@@ -311,17 +318,27 @@ def _points(path) -> np.ndarray:
     return points
 
 
-def show_picture(model: mujoco.MjModel, data: mujoco.MjData, *, description: str, **options) -> None:
+def show_picture(
+    model: mujoco.MjModel, data: mujoco.MjData, *, description: str, width: int = 480, height: int = 360, **options
+) -> None:
     """Render ``data``'s state (see :func:`render_picture`, which takes the same ``options``) and
-    show it with its text alternative ``description`` (:func:`labsupport.book.show_figure`);
-    without a working OpenGL backend print why, and the description, instead."""
+    show it ``width`` x ``height`` with its text alternative ``description``
+    (:func:`labsupport.book.show_figure`); without a working OpenGL backend print why, and the
+    description, instead. Where the model's offscreen buffer holds it, the picture is rendered
+    with :data:`labsupport.book.PIXEL_DENSITY` times the pixels each way, as the figures are, so
+    it stays sharp on high-density screens."""
     description = text_alternative(description, "a picture")
+    validate.mujoco_model(model)
+    width, height = validate.whole("width", width, 1), validate.whole("height", height, 1)
+    buffer = model.vis.global_
+    fits = PIXEL_DENSITY * width <= buffer.offwidth and PIXEL_DENSITY * height <= buffer.offheight
+    density = PIXEL_DENSITY if fits else 1
     try:
-        image = render_picture(model, data, **options)
+        image = render_picture(model, data, width=width, height=height, density=density, **options)
     except RenderingUnavailable as err:
         _not_shown("picture", err, description)
         return
-    show_figure(image, description)
+    show_figure(image, description, density=density)
 
 
 def _camera_id(model: mujoco.MjModel, camera: str | int | None) -> int:

@@ -77,6 +77,17 @@ def test_a_rendered_frame_is_shown_too(shown):
     assert shown[0]["metadata"] == {"image/png": {"width": 32}} and 'width="32"' in shown[0]["text/html"]
 
 
+def test_a_picture_rendered_at_twice_its_size_is_shown_at_its_size(shown):
+    """A frame rendered with two pixels each way per pixel shown (render.show_picture) keeps
+    them all and asks for half its width; a density that is not a whole number is refused."""
+    book.show_figure(np.zeros((48, 64, 3), dtype=np.uint8), ALT, density=2)
+    assert png_width(shown[0]) == 64 and shown[0]["metadata"] == {"image/png": {"width": 32}}
+    assert 'width="32"' in shown[0]["text/html"]
+    for density in (0, 1.5, "2"):
+        with pytest.raises(ValueError, match="density"):
+            book.show_figure(np.zeros((4, 4, 3), dtype=np.uint8), ALT, density=density)
+
+
 @pytest.mark.parametrize(
     ("printed", "written"),
     [

@@ -807,6 +807,54 @@ def test_a_picture_shows_the_tip_where_the_camera_sees_it_and_the_path_in_blue(t
     assert result["with path"]["blue"] > 100 and result["without path"]["blue"] == 0, result
 
 
+SHARP_PICTURE_SCRIPT = r"""
+import base64, io, json
+import labsupport
+import mujoco
+import numpy as np
+from PIL import Image
+from labsupport import book, render, trajectories
+from labsupport.plants import load_model
+shown = []
+book.display = lambda bundle, raw, metadata: shown.append((bundle, metadata))
+result = {}
+for name in ("spatial_3r", "planar_2r"):  # offscreen buffers of 960 x 720 and MuJoCo's default 640 x 480
+    model, data = load_model(name)
+    mujoco.mj_forward(model, data)
+    render.show_picture(model, data, description=f"The {name} arm at q = 0, seen from its camera.")  # 480 x 360
+    bundle, metadata = shown.pop()
+    png = Image.open(io.BytesIO(base64.b64decode(bundle["image/png"])))
+    result[name] = {"size": list(png.size), "shown": metadata["image/png"]["width"], "html": bundle["text/html"][-60:]}
+model, data = load_model("spatial_3r")
+data.qpos[:] = [0.4, 0.5, -0.9]
+mujoco.mj_forward(model, data)
+path = trajectories.circle_3d(np.linspace(0, 5, 200), (1.0, 0.3, 1.2), 0.3, (0, 0, 1), 0.2).pos
+one, two = (render.render_picture(model, data, path=path, width=320, height=240, density=d) for d in (1, 2))
+blue = lambda f: int(((f[..., 2] > 200) & (f[..., 1] < 130) & (f[..., 0] < 30)).sum())
+halved = two.reshape(240, 2, 320, 2, 3).mean(axis=(1, 3))
+result["trace"] = {"shapes": [list(one.shape), list(two.shape)], "blue": [blue(one), blue(two)],
+                   "difference": float(np.abs(halved - one).mean())}
+print(json.dumps(result))
+"""
+
+
+@pytest.mark.skipif(not gl.egl_works(), reason="EGL cannot open a display on this machine")
+def test_a_picture_has_twice_the_pixels_where_the_buffer_holds_them(tmp_path):
+    """show_picture renders a 480 x 360 picture of the 3R arm (a 960 x 720 buffer) at twice that
+    size, as the figures are drawn, and one of the 2R arm (MuJoCo's default 640 x 480) pixel for
+    pixel. At
+    density 2 the trace is twice as wide (four times the blue pixels), and the frame halved is
+    the density-1 frame up to antialiasing."""
+    result = _run_script(tmp_path, SHARP_PICTURE_SCRIPT, MUJOCO_GL="egl")
+    assert result["spatial_3r"]["size"] == [960, 720] and result["spatial_3r"]["shown"] == 480
+    assert result["planar_2r"]["size"] == [480, 360] and result["planar_2r"]["shown"] == 480
+    assert all('width="480"' in result[name]["html"] for name in ("spatial_3r", "planar_2r"))
+    trace = result["trace"]
+    assert trace["shapes"] == [[240, 320, 3], [480, 640, 3]]
+    assert 3.0 < trace["blue"][1] / trace["blue"][0] < 5.0, trace
+    assert trace["difference"] < 3.0, trace
+
+
 def test_pictures_and_videos_are_not_made_while_the_batch_grader_runs(monkeypatch, capsys):
     from labsupport.grading import BATCH_ENV
     from labsupport.plants import load_model

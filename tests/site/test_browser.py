@@ -204,13 +204,15 @@ def test_figures_show_at_their_own_size(on_every_page):
     and legends keep the size Matplotlib gave them (labsupport.plots.column_width); the circle
     figure of Task 3 and the two-panel figures of Tasks 1, 2 and 4 used to be shrunk to 78-85 %.
     Each Matplotlib figure carries twice the pixels it is shown with (labsupport.book.PIXEL_DENSITY),
-    so it stays sharp on a phone's screen and when zoomed in; rendered frames are shown pixel for pixel."""
+    so it stays sharp on a phone's screen and when zoomed in, and so does each rendered picture of a
+    model whose offscreen buffer holds it (labsupport.render.show_picture); anything else is shown
+    pixel for pixel."""
     shown = on_every_page(FIGURE_SCALE_JS, 1280)
-    assert sum(len(figures) for figures in shown.values()) >= 15, shown  # 17 today, in Tasks 1-4
+    assert sum(len(figures) for figures in shown.values()) >= 18, shown  # 20 today: 17 plots, 3 pictures
     shrunk = {
         page: [f"{alt}...: drawn for {a} px, shown at {w:.0f} px" for n, a, w, alt in figures if w < a - 1]
         for page, figures in shown.items()
     }
     assert not any(shrunk.values()), {page: found for page, found in shrunk.items() if found}
     dense = [n / a for figures in shown.values() for n, a, w, alt in figures]
-    assert sum(abs(d - 2) < 0.01 for d in dense) >= 15 and all(abs(d - 2) < 0.01 or d == 1 for d in dense), dense
+    assert sum(abs(d - 2) < 0.01 for d in dense) >= 18 and all(abs(d - 2) < 0.01 or d == 1 for d in dense), dense
