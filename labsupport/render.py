@@ -319,20 +319,29 @@ def _points(path) -> np.ndarray:
 
 
 def show_picture(
-    model: mujoco.MjModel, data: mujoco.MjData, *, description: str, width: int = 480, height: int = 360, **options
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    *,
+    description: str,
+    width: int = 480,
+    height: int = 360,
+    density: int | None = None,
+    **options,
 ) -> None:
     """Render ``data``'s state (see :func:`render_picture`, which takes the same ``options``) and
     show it ``width`` x ``height`` with its text alternative ``description``
     (:func:`labsupport.book.show_figure`); without a working OpenGL backend print why, and the
-    description, instead. Where the model's offscreen buffer holds it, the picture is rendered
-    with :data:`labsupport.book.PIXEL_DENSITY` times the pixels each way, as the figures are, so
-    it stays sharp on high-density screens."""
+    description, instead. By default (``density=None``) the picture is rendered with
+    :data:`labsupport.book.PIXEL_DENSITY` times the pixels each way where the model's offscreen
+    buffer holds them, as the figures are drawn, so that it stays sharp on high-density screens,
+    and pixel for pixel where it does not."""
     description = text_alternative(description, "a picture")
-    validate.mujoco_model(model)
-    width, height = validate.whole("width", width, 1), validate.whole("height", height, 1)
-    buffer = model.vis.global_
-    fits = PIXEL_DENSITY * width <= buffer.offwidth and PIXEL_DENSITY * height <= buffer.offheight
-    density = PIXEL_DENSITY if fits else 1
+    if density is None:
+        validate.mujoco_model(model)
+        width, height = validate.whole("width", width, 1), validate.whole("height", height, 1)
+        buffer = model.vis.global_
+        fits = PIXEL_DENSITY * width <= buffer.offwidth and PIXEL_DENSITY * height <= buffer.offheight
+        density = PIXEL_DENSITY if fits else 1
     try:
         image = render_picture(model, data, width=width, height=height, density=density, **options)
     except RenderingUnavailable as err:
