@@ -35,6 +35,8 @@ from labsupport.sim import Log, site_positions
 TARGET_RGBA = np.array([0.0, 0.2, 1.0, 1.0], dtype=np.float32)
 EE_RGBA = np.array([1.0, 0.0, 0.0, 0.8], dtype=np.float32)
 TARGET_WIDTH, EE_WIDTH = 6.0, 3.0
+#: The size a picture is shown at by default, width x height [CSS pixels].
+PICTURE_SIZE = (480, 360)
 
 INSTALL_HINT = (
     "On Linux, install an OpenGL library that works without a display and restart the kernel: "
@@ -89,6 +91,12 @@ def require_ffmpeg() -> None:
         raise RenderingUnavailable(FFMPEG_HINT)
 
 
+def _fits_buffer(model: mujoco.MjModel, width: int, height: int) -> bool:
+    """Whether a ``width`` x ``height`` frame fits the model's offscreen buffer
+    (``<visual><global offwidth offheight>``)."""
+    return width <= model.vis.global_.offwidth and height <= model.vis.global_.offheight
+
+
 def make_renderer(model: mujoco.MjModel, width: int = 320, height: int = 240) -> mujoco.Renderer:
     """An offscreen :class:`mujoco.Renderer`, or :class:`RenderingUnavailable` with advice.
 
@@ -101,7 +109,7 @@ def make_renderer(model: mujoco.MjModel, width: int = 320, height: int = 240) ->
         raise RenderingUnavailable("pictures and videos are not made while the batch grader runs the notebook")
     validate.mujoco_model(model)
     width, height = validate.whole("width", width, 1), validate.whole("height", height, 1)
-    if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
+    if not _fits_buffer(model, width, height):
         raise ValueError(
             f"{validate.short(width)} x {validate.short(height)} is larger than the model's offscreen buffer "
             f"({model.vis.global_.offwidth}x{model.vis.global_.offheight}); "
@@ -275,8 +283,8 @@ def render_picture(
     data: mujoco.MjData,
     *,
     path=None,
-    width: int = 480,
-    height: int = 360,
+    width: int = PICTURE_SIZE[0],
+    height: int = PICTURE_SIZE[1],
     camera: str | int | None = None,
     density: int = 1,
 ) -> np.ndarray:
@@ -323,8 +331,8 @@ def show_picture(
     data: mujoco.MjData,
     *,
     description: str,
-    width: int = 480,
-    height: int = 360,
+    width: int = PICTURE_SIZE[0],
+    height: int = PICTURE_SIZE[1],
     density: int | None = None,
     **options,
 ) -> None:
@@ -339,9 +347,7 @@ def show_picture(
     if density is None:
         validate.mujoco_model(model)
         width, height = validate.whole("width", width, 1), validate.whole("height", height, 1)
-        buffer = model.vis.global_
-        fits = PIXEL_DENSITY * width <= buffer.offwidth and PIXEL_DENSITY * height <= buffer.offheight
-        density = PIXEL_DENSITY if fits else 1
+        density = PIXEL_DENSITY if _fits_buffer(model, PIXEL_DENSITY * width, PIXEL_DENSITY * height) else 1
     try:
         image = render_picture(model, data, width=width, height=height, density=density, **options)
     except RenderingUnavailable as err:
