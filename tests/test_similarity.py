@@ -15,6 +15,7 @@ import zipfile
 from pathlib import Path
 
 import nbformat
+import numpy as np
 import pytest
 from hostile.build import unusual_problem2
 
@@ -143,6 +144,85 @@ def test_the_notebook_as_handed_out_is_nobodys_own_code():
     handed_out, _ = similarity.handed_out_and_master(SPEC1)
     assert similarity.own_code(BLANK, handed_out) == ""
     assert _pairs(similarity.similarity_reports({"a.ipynb": BLANK, "b.ipynb": BLANK}, SPEC1)) == {}
+
+
+def with_cell(notebook: bytes, source: str) -> bytes:
+    """``notebook`` with a code cell of ``source`` appended."""
+    nb = nbformat.reads(notebook.decode(), as_version=4)
+    nb.cells.append(nbformat.v4.new_code_cell(source))
+    return nbformat.writes(nb).encode()
+
+
+def task_code(name: str) -> str:
+    """Every code cell of a Task notebook as the course hands it out, in one piece."""
+    nb = nbformat.read(ROOT / "notebooks" / f"{name}.ipynb", as_version=4)
+    return "\n\n".join(c.source for c in nb.cells if c.cell_type == "code")
+
+
+TASKS = ("task1_single_joint", "task2_single_joint_mujoco", "task3_planar_2r", "task4_ur5e")
+
+
+def test_code_pasted_from_the_course_notebooks_is_nobodys_own_code():
+    # Four students each explore with one Task's code; one of them has also solved the Problem.
+    notebooks = {f"{task}.ipynb": with_cell(UNUSUAL if task == TASKS[-1] else BLANK, task_code(task)) for task in TASKS}
+    handed_out, master = similarity.handed_out_and_master(SPEC1)
+    codes = {name: similarity.own_code(data, handed_out) for name, data in notebooks.items()}
+    # Counted as their own, Task 1's and Task 2's code alone would list them: they share plots and runs.
+    assert similarity.similar_pairs(codes, "\n\n".join(sorted(handed_out)), {similarity.MASTER: master})
+    assert _pairs(similarity.similarity_reports(notebooks, SPEC1)) == {}
+    # A copy of the master with Task 3's code around it is still a copy of the master.
+    copy = with_cell(disguised_copy(SPEC1), task_code("task3_planar_2r"))
+    row = _pairs(similarity.similarity_reports({"copier.ipynb": copy}, SPEC1))["copier.ipynb", similarity.MASTER]
+    assert float(row["file's own code in other [%]"]) >= 90
+
+
+#: One-line idioms of exploration code that two students write alike without copying anything,
+#: each 25 to 59 characters once names are replaced and spaces dropped: copydetect counts each,
+#: and none is a passage long enough to count toward a whole answer.
+IDIOMS = (
+    "fig, ax = plt.subplots(1, 2, figsize=(9, 3.5), sharex=True)",
+    "ax[0].plot(log.t, np.degrees(log.q[:, 0]), label='q1', color='C0')",
+    "ax[1].set_xlabel('time [s]'); ax[1].set_ylabel('torque [N m]')",
+    "err = np.linalg.norm(log.ee[-1] - target, axis=-1) * 1e3",
+    "for i, name in enumerate(['pan', 'shoulder', 'elbow']): print(i, name)",
+    "q_all = np.array([ik_3r(p, elbow_up=True) for p in points])",
+    "plt.legend(loc='upper right', frameon=False, fontsize='small')",
+    "dist = np.sqrt(np.sum((pts - center[None, :]) ** 2, axis=1))",
+    "plt.savefig('figure.png', dpi=150, bbox_inches='tight')",
+    "rng = np.random.default_rng(12); qs = rng.uniform(-np.pi, np.pi, (50, 3))",
+    "print(f'max {np.max(np.abs(errors)):.3e}, mean {np.mean(errors):.3e}')",
+    "tau_log = np.zeros((len(log.t), model.nv)); tau_log[:, :] = log.tau",
+)
+
+
+def explorations(order: list[int], seed: int) -> str:
+    """The idioms in ``order``, each after lines of a student's own (numbers no one else writes)."""
+    rng = np.random.default_rng(seed)
+
+    def own() -> str:
+        return "\n".join(f"x{k} = {rng.uniform(1, 10):.6f} * (x{k} - {rng.uniform(1, 10):.6f})" for k in range(3))
+
+    return "\n".join(f"{own()}\n{IDIOMS[i]}" for i in order)
+
+
+def test_idioms_two_long_notebooks_share_by_chance_do_not_add_up_to_a_whole_answer():
+    handed_out, master = similarity.handed_out_and_master(SPEC1)
+    a = explorations(list(range(len(IDIOMS))), seed=1)
+    b = explorations(list(range(len(IDIOMS)))[::-1], seed=2)
+    boilerplate = "\n\n".join(sorted(handed_out))
+    print_a, print_b, print_m = (similarity._fingerprint(n, c, None) for n, c in (("a", a), ("b", b), ("m", master)))
+    shared, (share_a, share_b), _ = similarity.compare_files(print_a, print_b)
+    # Together the idioms are more than the flag's share of a whole answer, but none is a passage that counts.
+    assert shared >= similarity.FLAG_SHARE * print_m.token_coverage and max(share_a, share_b) < similarity.FLAG_SHARE
+    assert similarity.in_long_passages(print_a, print_b) == 0
+    assert similarity.similar_pairs({"a": a, "b": b}, boilerplate, {similarity.MASTER: master}) == []
+    # The same idioms around a copied answer: the answer is one long passage, and it counts.
+    copy = similarity.own_code(disguised_copy(SPEC1), handed_out)
+    pairs = similarity.similar_pairs(
+        {"a": a + "\n" + copy, "b": copy + "\n" + b}, boilerplate, {similarity.MASTER: master}
+    )
+    ab = next(p for p in pairs if (p.a, p.b) == ("a", "b"))
+    assert ab.share_answer == pytest.approx(1.0, abs=0.1)
 
 
 def test_student_code_and_file_names_reach_the_page_only_as_text():

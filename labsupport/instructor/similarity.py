@@ -5,8 +5,9 @@ The batch grader (:mod:`labsupport.instructor.batch`, and so the Canvas command 
 two files beside ``grades.csv``:
 
 * ``similarity.csv``: one row per pair of notebooks where either has at least
-  :data:`FLAG_SHARE` of its own code in the other, or where the code they share is as much as
-  :data:`FLAG_SHARE` of a whole answer, most shared first: the two files (one may be the
+  :data:`FLAG_SHARE` of its own code in the other, or where the code they share in passages of
+  :data:`MIN_PASSAGE` characters or more is as much as :data:`FLAG_SHARE` of a whole answer,
+  most shared first: the two files (one may be the
   master's solution), the share of each one's own code found in the other, how many tokens of
   code they share, and that amount as a share of a whole answer;
 * ``similarity.html``: the same pairs side by side, the shared passages marked, for reading in
@@ -21,7 +22,8 @@ not compared with each other).
 
 A notebook's own code is the source of its code cells (outputs are never read), less the cells
 left exactly as handed out, and less every passage of the student notebook as handed out (the
-stubs' signatures and docstrings, say), which every submission shares by design. Two notebooks
+stubs' signatures and docstrings, say), which every submission shares by design, and of the
+course's other notebooks (the Tasks: a student may paste from them). Two notebooks
 are compared with `copydetect <https://github.com/blingenf/copydetect>`_, which fingerprints
 code as MOSS does (winnowed k-grams of its tokens, every name replaced by one placeholder):
 renamed variables and dropped comments do not hide a copy, and passages shorter than about 25
@@ -31,7 +33,9 @@ Measured on Problem 1: independently written right answers share 7 to 37 % of th
 (its laws are short, its IK a textbook formula); a copy shares 100 %, even with its variables
 renamed and its comments dropped. Padding does not hide a copy either: two students who hand in
 one answer, each with pages of unrelated code added, share only a small part of their own code,
-but as much code as a whole answer, and that lists them. A whole answer is the master's own
+but as much code as a whole answer, and that lists them. Only passages of :data:`MIN_PASSAGE`
+characters or more count toward a whole answer: long notebooks written apart share many short
+idioms, which add up to as much. A whole answer is the master's own
 code, or, where the checkout lacks the master, the median submission's. Read the marked
 passages before concluding anything. The
 master's solution is compared too where the checkout holds it (``spec["master"]``): the
@@ -50,7 +54,7 @@ from dataclasses import dataclass
 try:
     from copydetect import CodeFingerprint, compare_files
     from copydetect.defaults import NOISE_THRESHOLD
-    from copydetect.utils import highlight_overlap
+    from copydetect.utils import find_fingerprint_overlap, get_copied_slices, highlight_overlap
 except ImportError as err:  # a checkout whose environment predates the report
     raise ImportError(
         "the batch grader's shared-code report needs copydetect: run `bash .ci/setup` from the repository root "
@@ -63,6 +67,14 @@ from labsupport.instructor.outputs import clean_text, csv_cell
 
 #: A pair is listed when either notebook has at least this share of its own code in the other.
 FLAG_SHARE = 0.6
+#: The shortest shared passage that counts toward a whole answer [characters of code with every
+#: name replaced by one letter and spaces dropped, as copydetect compares it]: about four lines
+#: of a law (``tau = Kp * (q_d - q) - Kd * qdot`` is 13), more than twice the 25 below which
+#: copydetect counts nothing. Task 4's notebook shares no code on purpose with Task 1's, 2's or
+#: 3's, yet the passages they share (idioms: a plot, a printout) add up to 91 to 105 % of a
+#: whole answer of Problem 1, none longer than 53 characters; a copied answer is one passage of
+#: hundreds (363 for Problem 1's).
+MIN_PASSAGE = 60
 #: The name the master's solution goes by in the reports.
 MASTER = "master solution"
 #: A notebook with more own code than this [characters] is not compared (fingerprinting this
@@ -108,6 +120,16 @@ def listed_share(share_a: float, share_b: float, share_answer: float) -> float:
     return max(share_a, share_b, min(share_answer, 1.0))
 
 
+def in_long_passages(a: CodeFingerprint, b: CodeFingerprint, shortest: int = MIN_PASSAGE) -> int:
+    """How much of ``a``'s code lies in the passages it shares with ``b`` of at least ``shortest``
+    characters of normalised code (:data:`MIN_PASSAGE`): what two notebooks share that is no chance
+    match of a few idioms."""
+    indices, _ = find_fingerprint_overlap(a.hashes, b.hashes, a.hash_idx, b.hash_idx)
+    starts, ends = get_copied_slices(indices, a.k)
+    lengths = ends - starts
+    return int(lengths[lengths >= shortest].sum())
+
+
 def answer_tokens(prints: dict[str, CodeFingerprint], codes: dict[str, str]) -> int:
     """How many tokens of own code a whole answer has: the master's (``MASTER`` in ``prints``),
     else the median of the submissions' (``codes``) that have any; at least 1."""
@@ -123,9 +145,10 @@ def similar_pairs(
     """Every pair of ``codes`` (name -> own code), and each of them with each of ``references``
     (the master's solution, earlier years' notebooks: compared with the submissions, not with
     each other), where either has at least ``flag`` of its own code in the other, or where they
-    share at least ``flag`` of a whole answer (:func:`answer_tokens`), which padding cannot hide;
-    most shared first, a reference always second. Code found in ``handed_out`` (the student
-    notebook's) is nobody's own."""
+    share at least ``flag`` of a whole answer (:func:`answer_tokens`) in passages of
+    :data:`MIN_PASSAGE` characters or more (:func:`in_long_passages`), which padding cannot hide;
+    most shared first, a reference always second. Code found in ``handed_out`` (the course's
+    notebooks as handed out) is nobody's own."""
     references = references or {}
     boilerplate = sorted(_fingerprint("handed_out", handed_out, None).hashes)
     everyone = {**references, **codes}
@@ -135,10 +158,13 @@ def similar_pairs(
     for a, b in [*itertools.combinations(codes, 2), *itertools.product(codes, references)]:
         shared, (share_a, share_b), (slices_a, slices_b) = compare_files(prints[a], prints[b])
         if not shared or listed_share(share_a, share_b, shared / answer) < flag:
+            continue  # all that is shared, short passages too, is an upper bound of what counts
+        share_answer = in_long_passages(prints[a], prints[b]) / answer
+        if listed_share(share_a, share_b, share_answer) < flag:
             continue
         marked_a, _ = highlight_overlap(everyone[a], slices_a, "<mark>", "</mark>", escape_html=True)
         marked_b, _ = highlight_overlap(everyone[b], slices_b, "<mark>", "</mark>", escape_html=True)
-        pairs.append(Pair(a, b, float(share_a), float(share_b), int(shared), shared / answer, marked_a, marked_b))
+        pairs.append(Pair(a, b, float(share_a), float(share_b), int(shared), share_answer, marked_a, marked_b))
     return sorted(pairs, key=lambda p: (-listed_share(p.share_a, p.share_b, p.share_answer), p.a, p.b))
 
 
@@ -226,7 +252,9 @@ def similarity_html(
         "either notebook has at least "
         f"{100 * flag:g} % of its own code (what it adds to the notebook as handed out) in the other, or where "
         f"the two share as much code as {100 * flag:g} % of a whole answer (the master's own code, else the median "
-        "submission's), so that code added around a copy does not hide it. Shared "
+        "submission's), counting passages of about four lines or more (shorter ones two long notebooks share by "
+        "chance), so that code added around a copy does not hide it. "
+        "Code from the course's notebooks as handed out (the Problem's, the Tasks') is nobody's own. Shared "
         "passages are <mark>marked</mark>; names and comments do not matter. In a trial on Problem 1, "
         "independently written right answers shared 7 to 37 % of their own code, and copies 100 %: read the "
         "marked passages before concluding anything.</p>"
@@ -251,6 +279,21 @@ def handed_out_and_master(spec: dict) -> tuple[frozenset[str], str | None]:
     except ValueError:
         master = None
     return handed_out, master
+
+
+def course_code(spec: dict) -> str:
+    """The code cells of every notebook the course hands out beside the Problem's own (the
+    Tasks, the other Problem: the ``.ipynb`` files in the student notebook's folder), one after
+    the other. A student may paste from them, so what two notebooks share of it is nobody's own
+    code: two students who each explored with code from a different Task share its plotting and
+    printing idioms, as much as a whole answer, without sharing an answer."""
+    sources = []
+    for path in sorted((ROOT / spec["student"]).parent.glob("*.ipynb")):
+        try:
+            sources += [source for _, source in judge.read_cells(path.read_bytes())]
+        except (OSError, ValueError):
+            continue
+    return "\n\n".join(sources)
 
 
 def _own_codes(notebooks: dict[str, bytes], handed_out: frozenset[str], left_out: dict[str, str]) -> dict[str, str]:
@@ -284,7 +327,7 @@ def similarity_reports(
     references = _own_codes(earlier or {}, handed_out, left_out)
     if master is not None:
         references[MASTER] = master
-    pairs = similar_pairs(codes, "\n\n".join(sorted(handed_out)), references, flag)
+    pairs = similar_pairs(codes, "\n\n".join([*sorted(handed_out), course_code(spec)]), references, flag)
     return {
         "similarity.csv": similarity_csv(pairs),
         "similarity.html": similarity_html(pairs, spec["problem"], len(codes), len(references), left_out, flag),
