@@ -306,6 +306,14 @@ def render_picture(
         )
     camera = _camera_id(model, camera)
     points = None if path is None else _points(path)
+    if density > 1 and not _fits_buffer(model, density * width, density * height):
+        raise ValueError(
+            f"render_picture: at density {density} a {width} x {height} picture is a {density * width} x "
+            f"{density * height} frame, larger than the model's offscreen buffer ({model.vis.global_.offwidth}x"
+            f"{model.vis.global_.offheight}); pass density=1 (or leave density out in show_picture, which picks "
+            "what fits), a smaller size, or enlarge the buffer: set model.vis.global_.offwidth and "
+            "model.vis.global_.offheight (in the model file, <visual><global offwidth offheight>)"
+        )
     renderer = make_renderer(model, density * width, density * height)
     try:
         renderer.update_scene(data, camera=camera)

@@ -1008,3 +1008,19 @@ def test_the_red_trace_shows_whole_over_a_reference_it_keeps_to(tmp_path):
     assert result["gap_mm"] < 0.5 and result["core"] > 100, result
     assert result["blue_on_core"] <= 0.02 * result["core"], result
     assert result["blue"] > 0.5 * result["core"], result
+
+
+def test_a_density_the_buffer_cannot_hold_names_the_frame_it_asked_for():
+    """A 640 x 480 picture of the 2R arm fits its buffer (MuJoCo's default 640 x 480), but not at
+    density 2: the message gives the 1280 x 960 frame that asks for, and what to do."""
+    import mujoco
+
+    from labsupport.plants import load_model
+
+    model, data = load_model("planar_2r")
+    mujoco.mj_forward(model, data)
+    with pytest.raises(ValueError) as err:
+        render.render_picture(model, data, width=640, height=480, density=2)
+    message = str(err.value)
+    assert "at density 2 a 640 x 480 picture is a 1280 x 960 frame" in message
+    assert "(640x480)" in message and "density=1" in message
