@@ -28,12 +28,15 @@ part of them is reachable by landmark.
   sends the browser on to the first page: no language, no title, no icon (so the browser asked
   the server for ``/favicon.ico``, a 404), and a blank page where a browser does not follow such
   redirects (a reader may turn them off). It becomes a whole page: the book's language and
-  title, the course's icon, and a link to the first page for that reader.
+  title, the course's icon, a viewport for phones, and a link to the first page for that reader.
 * **Punctuation alone at the start of a line.** A browser may break a line between an inline
   formula (MathJax draws it as one inline box) and the comma, colon or bracket written against
   it, so a line could begin with a lone ``,`` or end with a lone ``(``. Each inline formula with
   punctuation against it is wrapped, with that punctuation, in a ``span.math-nobreak``, which
   ``course.css`` keeps on one line.
+* **The viewport said three times.** Sphinx, the theme and its parent theme each write a
+  ``<meta name="viewport">`` into the head, so every page said it three times (two of them
+  ``initial-scale=1``, one ``1.0``: the same). The first is kept.
 * **Code broken at its hyphens.** Inline code may break where it must, so that a long call
   never widens a phone's page (``course.css``); but a browser also breaks it after any hyphen,
   where it need not, and ``sscbirrt-`` at a line's end reads as a name that ends in a hyphen,
@@ -61,6 +64,8 @@ _GLUED_EXPONENT = re.compile(r'<span class="pasted-text">(-?\d+(?:\.\d+)?)e([-+]
 _HYPHENATED_CODE = re.compile(r'<span class="pre">([^<]*-[^<]*)</span>')
 #: The redirect Jupyter Book (or sphinx-external-toc) writes as the root ``index.html``.
 _REDIRECT = re.compile(r'<meta http-equiv="Refresh" content="0; url=([^"]+)" />')
+#: A viewport declaration in a page's head.
+_VIEWPORT = re.compile(r'\s*<meta name="viewport"[^>]*>')
 _FONTAWESOME_JS = re.compile(r'\s*<script defer src="[^"]*_static/scripts/fontawesome\.js[^"]*"></script>')
 
 
@@ -88,6 +93,14 @@ def _math_with_its_punctuation(found: re.Match) -> str:
     return f'<span class="math-nobreak">{before}{formula}{after}</span>'
 
 
+def _one_viewport(html: str) -> str:
+    """``html`` with its first viewport declaration only."""
+    first = _VIEWPORT.search(html)
+    if first is None:
+        return html
+    return html[: first.end()] + _VIEWPORT.sub("", html[first.end() :])
+
+
 def fix_page_context(app, pagename, templatename, context, doctree):
     """``html-page-context`` handler: unique scripts, and a valid default colour mode."""
     scripts = context.get("script_files")
@@ -107,7 +120,8 @@ def fix_built_pages(app, exc):
     """``build-finished`` handler: remove the redundant Font Awesome script from every page, give
     bibliography entries the list-item role, put the course title in a landmark, write glued
     numbers in exponent notation as powers of ten, keep each inline formula on one line with
-    the punctuation against it, and keep each hyphenated word of inline code whole."""
+    the punctuation against it, keep each hyphenated word of inline code whole, and keep one
+    viewport declaration."""
     if exc is not None or app.builder.format != "html":
         return
     out = Path(app.outdir)
@@ -118,6 +132,7 @@ def fix_built_pages(app, exc):
         lighter = _GLUED_EXPONENT.sub(_power_of_ten, lighter)
         lighter = _INLINE_MATH.sub(_math_with_its_punctuation, lighter)
         lighter = _HYPHENATED_CODE.sub(r'<span class="pre keep-whole">\1</span>', lighter)
+        lighter = _one_viewport(lighter)
         if lighter != html:
             page.write_text(lighter, encoding="utf-8")
     _complete_the_redirect(out / "index.html", app.config)
@@ -127,7 +142,7 @@ def fix_built_pages(app, exc):
 
 def _complete_the_redirect(redirect: Path, config) -> None:
     """Make the root redirect page a whole page (WCAG 2.4.2 and 3.1.1): the book's language and
-    title, its icon (which Sphinx copies into ``_static``), and a link to the first page."""
+    title, its icon (which Sphinx copies into ``_static``), a viewport, and a link to the first page."""
     found = _REDIRECT.search(redirect.read_text(encoding="utf-8")) if redirect.is_file() else None
     if found is None:
         return
@@ -135,6 +150,7 @@ def _complete_the_redirect(redirect: Path, config) -> None:
     icon = f'<link rel="icon" href="_static/{Path(config.html_favicon).name}" />\n' if config.html_favicon else ""
     redirect.write_text(
         f'<!DOCTYPE html>\n<html lang="{config.language or "en"}">\n<head>\n<meta charset="utf-8" />\n'
+        '<meta name="viewport" content="width=device-width, initial-scale=1" />\n'
         f"<title>{title}</title>\n{icon}{found[0]}\n</head>\n"
         f'<body>\n<main>\n<p>The course starts at <a href="{url}">{title}</a>.</p>\n</main>\n</body>\n</html>\n',
         encoding="utf-8",

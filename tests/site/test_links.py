@@ -122,3 +122,14 @@ def test_every_page_names_its_icon():
     site = require_site()
     missing = [str(page.relative_to(site)) for page in site_pages(site) if not parse(page).icon]
     assert not missing, f"pages without <link rel='icon'>: {missing}"
+
+
+def test_every_page_declares_its_viewport_once():
+    """Three ``<meta name="viewport">`` in a head (Sphinx's, the theme's, its parent's) are
+    invalid HTML; ``book/_ext/site_fixes.py`` keeps the first, which phones need."""
+    site = require_site()
+    counts = {
+        str(p.relative_to(site)): p.read_text(encoding="utf-8").count('<meta name="viewport"') for p in site_pages(site)
+    }
+    wrong = {page: n for page, n in counts.items() if n != 1}
+    assert not wrong, f"pages whose viewport is declared other than once: {wrong}"
