@@ -8,8 +8,10 @@ two files beside ``grades.csv``:
   :data:`FLAG_SHARE` of its own code in the other, or where the code they share in passages of
   :data:`MIN_PASSAGE` characters or more is as much as :data:`FLAG_SHARE` of a whole answer,
   most shared first: the two files (one may be the
-  master's solution), the share of each one's own code found in the other, how many tokens of
-  code they share, and that amount as a share of a whole answer;
+  master's solution), the share of each one's own code found in the other, how much code they
+  share (in characters of normalised code, what copydetect calls tokens: every name replaced by
+  one letter, spaces and comments dropped), and what they share in long passages as a share of
+  a whole answer;
 * ``similarity.html``: the same pairs side by side, the shared passages marked, for reading in
   a browser (one self-contained page).
 
@@ -25,9 +27,10 @@ left exactly as handed out, and less every passage of the student notebook as ha
 stubs' signatures and docstrings, say), which every submission shares by design, and of the
 course's other notebooks (the Tasks: a student may paste from them). Two notebooks
 are compared with `copydetect <https://github.com/blingenf/copydetect>`_, which fingerprints
-code as MOSS does (winnowed k-grams of its tokens, every name replaced by one placeholder):
-renamed variables and dropped comments do not hide a copy, and passages shorter than about 25
-tokens do not count (a one-line PD law is the same in every right answer).
+code as MOSS does (winnowed k-grams of its normalised text: every name replaced by one letter,
+spaces and comments dropped): renamed variables and dropped comments do not hide a copy, and
+passages shorter than 25 characters of that text do not count (a one-line PD law, the same in
+every right answer, is about 17).
 
 Measured on Problem 1: independently written right answers share 7 to 37 % of their own code
 (its laws are short, its IK a textbook formula); a copy shares 100 %, even with its variables
@@ -85,9 +88,10 @@ MAX_CODE_CHARS = judge.MAX_CODE_CHARS
 @dataclass(frozen=True)
 class Pair:
     """Two notebooks that share code: ``share_a`` of ``a``'s own code is in ``b``, and
-    ``share_b`` of ``b``'s in ``a``; ``shared`` counts the shared tokens of code, which are
-    ``share_answer`` of a whole answer's; ``marked_a`` and ``marked_b`` are each one's code as
-    HTML, shared passages in ``<mark>``."""
+    ``share_b`` of ``b``'s in ``a``; ``shared`` counts the characters of normalised code they
+    share; what they share in passages of :data:`MIN_PASSAGE` or more is ``share_answer`` of a
+    whole answer; ``marked_a`` and ``marked_b`` are each one's code as HTML, shared passages in
+    ``<mark>``."""
 
     a: str
     b: str
@@ -131,8 +135,9 @@ def in_long_passages(a: CodeFingerprint, b: CodeFingerprint, shortest: int = MIN
 
 
 def answer_tokens(prints: dict[str, CodeFingerprint], codes: dict[str, str]) -> int:
-    """How many tokens of own code a whole answer has: the master's (``MASTER`` in ``prints``),
-    else the median of the submissions' (``codes``) that have any; at least 1."""
+    """How much own code (characters of normalised code) a whole answer has: the master's
+    (``MASTER`` in ``prints``), else the median of the submissions' (``codes``) that have any;
+    at least 1."""
     if MASTER in prints:
         return max(1, int(prints[MASTER].token_coverage))
     sizes = [prints[name].token_coverage for name in codes if prints[name].token_coverage]
@@ -178,7 +183,7 @@ def similarity_csv(pairs: list[Pair]) -> str:
             "other",
             "file's own code in other [%]",
             "other's own code in file [%]",
-            "shared [tokens]",
+            "shared [characters of normalised code]",
             "shared, of a whole answer [%]",
         ]
     )
