@@ -258,7 +258,7 @@ def _argv(subs: Path, out: Path, spec: Path) -> list[str]:
     return ["--spec", str(spec), str(subs), "--out", str(out), "--jobs", "1", "--unsafe-no-sandbox"]
 
 
-def test_the_batch_writes_the_report_and_a_regrade_keeps_the_earlier_one(tmp_path):
+def test_the_batch_writes_the_report_and_a_regrade_keeps_the_earlier_one(tmp_path, capsys):
     subs = tmp_path / "subs"
     subs.mkdir()
     (subs / "copier.ipynb").write_bytes(disguised_copy(SPEC1))
@@ -267,10 +267,12 @@ def test_the_batch_writes_the_report_and_a_regrade_keeps_the_earlier_one(tmp_pat
     batch.main(_argv(subs, out, spec))
     first = (out / "similarity.csv").read_text(encoding="utf-8")
     assert "copier.ipynb,master solution," in first
+    assert f"; pairs sharing code: 1, in {out / 'similarity.html'}" in capsys.readouterr().out
     (subs / "copier.ipynb").write_bytes(BLANK)
     batch.main(_argv(subs, out, spec))
     assert (out / "previous" / "similarity.csv").read_text(encoding="utf-8") == first
     assert len((out / "similarity.csv").read_text(encoding="utf-8").splitlines()) == 1  # the header alone
+    assert "; pairs sharing code: 0, in " in capsys.readouterr().out
 
 
 def test_earlier_notebooks_are_compared_with_the_submissions_not_graded_and_not_with_each_other(tmp_path, capsys):
