@@ -91,6 +91,13 @@ def require_ffmpeg() -> None:
         raise RenderingUnavailable(FFMPEG_HINT)
 
 
+#: What to do about a frame larger than a model's offscreen buffer.
+ENLARGE_BUFFER = (
+    "enlarge the buffer before rendering: set model.vis.global_.offwidth and model.vis.global_.offheight "
+    "(in the model file, <visual><global offwidth offheight>)"
+)
+
+
 def _fits_buffer(model: mujoco.MjModel, width: int, height: int) -> bool:
     """Whether a ``width`` x ``height`` frame fits the model's offscreen buffer
     (``<visual><global offwidth offheight>``)."""
@@ -113,8 +120,7 @@ def make_renderer(model: mujoco.MjModel, width: int = 320, height: int = 240) ->
         raise ValueError(
             f"{validate.short(width)} x {validate.short(height)} is larger than the model's offscreen buffer "
             f"({model.vis.global_.offwidth}x{model.vis.global_.offheight}); "
-            "pick a smaller size, or enlarge the buffer before rendering: set model.vis.global_.offwidth and "
-            "model.vis.global_.offheight (in the model file, <visual><global offwidth offheight>)"
+            f"pick a smaller size, or {ENLARGE_BUFFER}"
         )
     backend = os.environ.get("MUJOCO_GL")
     if not backend and gl.on_linux():  # on Linux, MuJoCo's default (GLFW) needs a display
@@ -311,8 +317,7 @@ def render_picture(
             f"render_picture: at density {density} a {width} x {height} picture is a {density * width} x "
             f"{density * height} frame, larger than the model's offscreen buffer ({model.vis.global_.offwidth}x"
             f"{model.vis.global_.offheight}); pass density=1 (or leave density out in show_picture, which picks "
-            "what fits), a smaller size, or enlarge the buffer: set model.vis.global_.offwidth and "
-            "model.vis.global_.offheight (in the model file, <visual><global offwidth offheight>)"
+            f"what fits), a smaller size, or {ENLARGE_BUFFER}"
         )
     renderer = make_renderer(model, density * width, density * height)
     try:

@@ -7,11 +7,10 @@ two files beside ``grades.csv``:
 * ``similarity.csv``: one row per pair of notebooks where either has at least
   :data:`FLAG_SHARE` of its own code in the other, or where the code they share in passages of
   :data:`MIN_PASSAGE` characters or more is as much as :data:`FLAG_SHARE` of a whole answer,
-  most shared first: the two files (one may be the
-  master's solution), the share of each one's own code found in the other, how much code they
-  share (in characters of normalised code, what copydetect calls tokens: every name replaced by
-  one letter, spaces and comments dropped), and what they share in long passages as a share of
-  a whole answer;
+  most shared first: the two files (one may be the master's solution), the share of each one's
+  own code found in the other, how much code they share (in characters of normalised code,
+  what copydetect calls tokens: every name replaced by one letter, spaces and comments
+  dropped), and what they share in long passages as a share of a whole answer;
 * ``similarity.html``: the same pairs side by side, the shared passages marked, for reading in
   a browser (one self-contained page).
 
