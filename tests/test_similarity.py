@@ -225,9 +225,38 @@ def test_idioms_two_long_notebooks_share_by_chance_do_not_add_up_to_a_whole_answ
     assert ab.share_answer == pytest.approx(1.0, abs=0.1)
 
 
+def laws_only(pd: str, ct: str) -> bytes:
+    """Problem 1's notebook as handed out with only its PD and CT TODOs answered, by these bodies."""
+    nb = nbformat.reads(BLANK.decode(), as_version=4)
+    cells = {c.id: c for c in nb.cells}
+    cells["p1-pd"].source = f"def pd_torque(model, data, q_d, Kp, Kd):\n    {pd}\n"
+    cells["p1-ct"].source = f"def ct_joint_torque(model, data, q_d, Kp, Kd):\n    {ct}\n"
+    return nbformat.writes(nb).encode()
+
+
+def test_two_notebooks_that_hold_only_the_textbook_laws_are_no_lead():
+    pd = "return Kp * (q_d - data.qpos) - Kd * data.qvel"
+    ct = "return mass_matrix(model, data) @ (Kp * (q_d - data.qpos) - Kd * data.qvel) + bias_forces(data)"
+    a = laws_only(pd, ct)
+    b = laws_only(pd.replace(" ", ""), ct.replace("@", "@ ").replace("mass_matrix", "mass_matrix "))
+    handed_out, master = similarity.handed_out_and_master(SPEC1)
+    boilerplate = sorted(similarity._fingerprint("handed out", "\n\n".join(sorted(handed_out)), None).hashes)
+    codes = {"a": similarity.own_code(a, handed_out), "b": similarity.own_code(b, handed_out), "m": master}
+    print_a, print_b, print_m = (similarity._fingerprint(n, code, boilerplate) for n, code in codes.items())
+    shared, (share_a, share_b), _ = similarity.compare_files(print_a, print_b)
+    # Almost all of each one's own code is in the other, but that is little: under a third of an answer.
+    assert min(share_a, share_b) >= similarity.FLAG_SHARE and shared < similarity.MIN_SHARED * print_m.token_coverage
+    assert _pairs(similarity.similarity_reports({"a.ipynb": a, "b.ipynb": b}, SPEC1)) == {}
+    # The same laws in two notebooks that also share an inverse kinematics: listed.
+    ik = next(c.source for c in nbformat.read(ROOT / SPEC1["master"], as_version=4).cells if c.get("id") == "p1-ik")
+    both = {name: with_cell(data, ik) for name, data in (("a.ipynb", a), ("b.ipynb", b))}
+    assert ("a.ipynb", "b.ipynb") in _pairs(similarity.similarity_reports(both, SPEC1))
+
+
 def test_student_code_and_file_names_reach_the_page_only_as_text():
     nb = nbformat.read(ROOT / SPEC1["student"], as_version=4)
-    nb.cells.append(nbformat.v4.new_code_cell('evil = "</pre><script>alert(1)</script>"\n' + "x = 1 + 2 * 3\n" * 20))
+    own = "".join(f"x{i} = {i} + 2 * {3 * i + 1}\n" for i in range(20))  # enough shared code to be listed
+    nb.cells.append(nbformat.v4.new_code_cell('evil = "</pre><script>alert(1)</script>"\n' + own))
     nb.cells.append(nbformat.v4.new_code_cell("surrogate = '\ud800'\n"))  # no UTF-8 page can hold it
     data = json.dumps(nb).encode()  # the surrogate as JSON writes it, "\\ud800"
     names = {"<img src=x onerror=alert(1)>.ipynb": data, "=B(1).ipynb": data, "garc\udceda.ipynb": data}

@@ -7,10 +7,11 @@ two files beside ``grades.csv``:
 * ``similarity.csv``: one row per pair of notebooks where either has at least
   :data:`FLAG_SHARE` of its own code in the other, or where the code they share in passages of
   :data:`MIN_PASSAGE` characters or more is as much as :data:`FLAG_SHARE` of a whole answer,
-  most shared first: the two files (one may be the master's solution), the share of each one's
-  own code found in the other, how much code they share (in characters of normalised code,
-  what copydetect calls tokens: every name replaced by one letter, spaces and comments
-  dropped), and what they share in long passages as a share of a whole answer;
+  and that share at least :data:`MIN_SHARED` of a whole answer in all, most shared first: the
+  two files (one may be the master's solution), the share of each one's own code found in the
+  other, how much code they share (in characters of normalised code, what copydetect calls
+  tokens: every name replaced by one letter, spaces and comments dropped), and what they share
+  in long passages as a share of a whole answer;
 * ``similarity.html``: the same pairs side by side, the shared passages marked, for reading in
   a browser (one self-contained page).
 
@@ -77,6 +78,12 @@ FLAG_SHARE = 0.6
 #: whole answer of Problem 1, none longer than 53 characters; a copied answer is one passage of
 #: hundreds (363 for Problem 1's).
 MIN_PASSAGE = 60
+#: The least a pair must share to be listed, as a share of a whole answer: a third, more than
+#: the PD and computed-torque laws together (31 % of Problem 1's master), less than its inverse
+#: kinematics alone (69 %). Below it, a high share of one's own code only means there is little
+#: of it: two notebooks that each hold just the textbook PD and computed-torque lines (right
+#: answers write them alike) have 73 % of their own code in each other.
+MIN_SHARED = 1 / 3
 #: The name the master's solution goes by in the reports.
 MASTER = "master solution"
 #: A notebook with more own code than this [characters] is not compared (fingerprinting this
@@ -150,9 +157,10 @@ def similar_pairs(
     (the master's solution, earlier years' notebooks: compared with the submissions, not with
     each other), where either has at least ``flag`` of its own code in the other, or where they
     share at least ``flag`` of a whole answer (:func:`answer_tokens`) in passages of
-    :data:`MIN_PASSAGE` characters or more (:func:`in_long_passages`), which padding cannot hide;
-    most shared first, a reference always second. Code found in ``handed_out`` (the course's
-    notebooks as handed out) is nobody's own."""
+    :data:`MIN_PASSAGE` characters or more (:func:`in_long_passages`), which padding cannot hide,
+    and where they share at least :data:`MIN_SHARED` of a whole answer in all (``flag`` where
+    that is lower: a lower bar lists more); most shared first, a reference always second. Code
+    found in ``handed_out`` (the course's notebooks as handed out) is nobody's own."""
     references = references or {}
     boilerplate = sorted(_fingerprint("handed_out", handed_out, None).hashes)
     everyone = {**references, **codes}
@@ -161,7 +169,11 @@ def similar_pairs(
     pairs = []
     for a, b in [*itertools.combinations(codes, 2), *itertools.product(codes, references)]:
         shared, (share_a, share_b), (slices_a, slices_b) = compare_files(prints[a], prints[b])
-        if not shared or listed_share(share_a, share_b, shared / answer) < flag:
+        if (
+            not shared
+            or shared < min(MIN_SHARED, flag) * answer
+            or listed_share(share_a, share_b, shared / answer) < flag
+        ):
             continue  # all that is shared, short passages too, is an upper bound of what counts
         share_answer = in_long_passages(prints[a], prints[b]) / answer
         if listed_share(share_a, share_b, share_answer) < flag:
@@ -257,7 +269,9 @@ def similarity_html(
         f"{100 * flag:g} % of its own code (what it adds to the notebook as handed out) in the other, or where "
         f"the two share as much code as {100 * flag:g} % of a whole answer (the master's own code, else the median "
         "submission's), counting passages of about four lines or more (shorter ones two long notebooks share by "
-        "chance), so that code added around a copy does not hide it. "
+        "chance), so that code added around a copy does not hide it; either way, only where the two share at "
+        f"least {100 * min(MIN_SHARED, flag):.0f} % of a whole answer in all (less, such as the textbook PD and "
+        "computed-torque lines alone, is no lead). "
         "Code from the course's notebooks as handed out (the Problem's, the Tasks') is nobody's own. Shared "
         "passages are <mark>marked</mark>; names and comments do not matter. In a trial on Problem 1, "
         "independently written right answers shared 7 to 37 % of their own code, and copies 100 %: read the "
