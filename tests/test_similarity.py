@@ -95,12 +95,17 @@ PADDINGS = (
 )
 
 
+def with_cell(notebook: bytes, source: str) -> bytes:
+    """``notebook`` with a code cell of ``source`` appended."""
+    nb = nbformat.reads(notebook.decode(), as_version=4)
+    nb.cells.append(nbformat.v4.new_code_cell(source))
+    return nbformat.writes(nb).encode()
+
+
 def padded(notebook: bytes, kind: int) -> bytes:
     """``notebook`` with a cell of 40 blocks of unrelated code, of the given ``kind`` (0, 1 or 2),
     appended: about four times the code of a whole answer."""
-    nb = nbformat.reads(notebook.decode(), as_version=4)
-    nb.cells.append(nbformat.v4.new_code_cell("\n".join(PADDINGS[kind].format(i=i, j=i + 2) for i in range(40))))
-    return nbformat.writes(nb).encode()
+    return with_cell(notebook, "\n".join(PADDINGS[kind].format(i=i, j=i + 2) for i in range(40)))
 
 
 @pytest.mark.parametrize("spec", [SPEC1, SPEC2], ids=["problem1", "problem2"])
@@ -144,13 +149,6 @@ def test_the_notebook_as_handed_out_is_nobodys_own_code():
     handed_out, _ = similarity.handed_out_and_master(SPEC1)
     assert similarity.own_code(BLANK, handed_out) == ""
     assert _pairs(similarity.similarity_reports({"a.ipynb": BLANK, "b.ipynb": BLANK}, SPEC1)) == {}
-
-
-def with_cell(notebook: bytes, source: str) -> bytes:
-    """``notebook`` with a code cell of ``source`` appended."""
-    nb = nbformat.reads(notebook.decode(), as_version=4)
-    nb.cells.append(nbformat.v4.new_code_cell(source))
-    return nbformat.writes(nb).encode()
 
 
 def task_code(name: str) -> str:

@@ -261,11 +261,14 @@ def run_batch(
         shared = {}
         print(f"the shared-code report was not written: {clean_text(str(err))}", file=sys.stderr)
     _write_results(out, spec, rows, record, shared)
-    listed = len(shared["similarity.csv"].splitlines()) - 1 if shared else 0
     print(
         f"{len(rows)} submissions graded in {elapsed:.1f} s with {jobs} at once (seed {seed}); "
         f"see {Path(out) / 'grades.csv'}"
-        + (f"; pairs sharing code: {listed}, in {Path(out) / 'similarity.html'}" if shared else "")
+        + (
+            f"; pairs sharing code: {similarity.pairs_listed(shared)}, in {Path(out) / 'similarity.html'}"
+            if shared
+            else ""
+        )
     )
     return rows
 

@@ -35,7 +35,7 @@ from labsupport.instructor.batch import (
     shared_code_reports,
 )
 from labsupport.instructor.outputs import clean_text, keep_previous, keep_private
-from labsupport.instructor.similarity import FLAG_SHARE
+from labsupport.instructor.similarity import FLAG_SHARE, pairs_listed
 from labsupport.instructor.submissions import is_zip, zip_notebooks
 
 #: The files this command writes (and moves into ``previous/`` when an earlier run left them).
@@ -138,7 +138,7 @@ def main(argv=None) -> None:
         parser.exit(
             2, f"{parser.prog}: cannot write {args.out} ({err.strerror or err}): give --out a folder you can write to\n"
         )
-    pairs = len(reports["similarity.csv"].splitlines()) - 1
+    pairs = pairs_listed(reports)
     print(
         f"{sum(1 for _, data, _ in payloads if data)} submissions compared; pairs sharing at least "
         f"{100 * args.flag:g} % of one's own code or of a whole answer: {pairs}; see {args.out / 'similarity.html'}"

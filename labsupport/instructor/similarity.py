@@ -228,6 +228,11 @@ def _side(name: str, share: float, marked: str) -> str:
     )
 
 
+def pairs_listed(reports: dict[str, str]) -> int:
+    """How many pairs the reports of :func:`similarity_reports` list (the CSV's rows)."""
+    return len(reports["similarity.csv"].splitlines()) - 1
+
+
 def similarity_html(
     pairs: list[Pair], problem: str, compared: int, references: int, left_out: dict[str, str], flag: float = FLAG_SHARE
 ) -> str:
