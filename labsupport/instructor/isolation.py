@@ -5,8 +5,10 @@ read-only by every sandbox of the batch:
 
 * ``/opt/python``: the base interpreter (bound at a neutral path, so ``sys.prefix`` names no
   folder of the course checkout), and ``/opt/venv``: a skeleton virtual environment whose
-  ``site-packages`` is the grader's own, with every trace of the checkout masked (editable
-  finders, ``.pth`` files naming it, labsupport's own metadata);
+  ``site-packages`` is the grader's own, with every way into the checkout masked (editable
+  finders, ``.pth`` files naming it, labsupport's own metadata); the host folders bound there
+  are still named by the kernel's mount table and bubblewrap's command line in ``/proc``, as
+  paths the sandbox cannot open;
 * ``/opt/student/labsupport``: labsupport as a student installs it (the packages the wheel
   lists in ``pyproject.toml``, so no instructor tooling), with the modules of
   :data:`labsupport.grading.rules.FORBIDDEN` replaced by stubs whose every attribute is a
