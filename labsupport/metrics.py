@@ -26,6 +26,11 @@ def _samples(error) -> np.ndarray:
     error = values
     if error.ndim == 0:
         raise ValueError(f"the RMS is taken over samples, an array of them; got the single number {error}")
+    if error.size == 0 and error.ndim == 2 and len(error):
+        raise ValueError(
+            f"the error has {len(error)} samples of no component (shape {error.shape}): a run's log.err "
+            "holds an error only when simulate was given site= and reference="
+        )
     if error.size == 0:
         raise ValueError(
             f"no samples to take the RMS of (an empty array of shape {error.shape}); with "

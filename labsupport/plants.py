@@ -38,6 +38,22 @@ class _BadTorque(Exception):
     pass
 
 
+def _torque_error_hint(err: Exception) -> str:
+    """What a torque function's ``TypeError`` or ``AttributeError`` most likely means: raised by
+    the call itself, or an attribute asked of the state (``data.qpos``), a function of other
+    arguments (t alone, model and data); raised inside it by a missing argument, a law handed a
+    Reference or Gains whole where it takes their parts."""
+    called = err.__traceback__ is None or err.__traceback__.tb_next is None  # the call of torque itself
+    if called or isinstance(err, AttributeError):
+        return "; it is called as torque(t, state) with state = (theta, theta_dot), an array"
+    if isinstance(err, TypeError) and "missing" in str(err) and "argument" in str(err):
+        return (
+            "; a law inside it was called with fewer arguments than it takes: a Reference or Gains "
+            "passed whole counts as one argument, so unpack it with *, as in *reference(t)"
+        )
+    return ""
+
+
 @dataclass(frozen=True)
 class SingleJoint:
     r"""One revolute joint with a link, viscous friction and (optionally) gravity.
@@ -126,11 +142,10 @@ class SingleJoint:
 
         def checked_torque(t, x):
             try:
-                tau = torque(t, x)
-            except (TypeError, AttributeError) as err:  # a function of other arguments (t alone, model and data)
+                tau = torque(t, x.copy())  # the solver's own state stays its own
+            except (TypeError, AttributeError) as err:
                 raise _BadTorque(
-                    f"the torque function raised {type(err).__name__} at t = {t:.4f} s: {err}; it is called as "
-                    "torque(t, state) with state = (theta, theta_dot), an array"
+                    f"the torque function raised {type(err).__name__} at t = {t:.4f} s: {err}{_torque_error_hint(err)}"
                 ) from err
             if tau is None:
                 raise _BadTorque(f"the torque function returned None at t = {t:.4f} s")

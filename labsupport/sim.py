@@ -380,6 +380,23 @@ _CONTROLLER_ERRORS = (
 CONTROLLER_RAISED = "the controller raised"
 
 
+def _other_shape_hint(err: Exception) -> str:
+    """Why a controller may treat MuJoCo's model or data as something else: a law of the analytic
+    single joint (Task 1), which takes a ``SingleJoint``, or a ``torque(t, state)`` function."""
+    text = str(err)
+    if isinstance(err, AttributeError) and "MjModel' object has no attribute" in text:
+        return (
+            ". A law was handed the MuJoCo model where it expects another: the single-joint laws of "
+            "labsupport.controllers.single_joint take a plants.SingleJoint as their model"
+        )
+    if isinstance(err, TypeError) and "MjData' object is not subscriptable" in text:
+        return (
+            ". simulate calls controller(model, data); a function torque(t, state) is the form "
+            "SingleJoint.simulate calls: here read the state from data.qpos and data.qvel"
+        )
+    return ""
+
+
 def _controller_failed(err: Exception, model: mujoco.MjModel, data: mujoco.MjData) -> Exception:
     """The controller's error (say, ``None - 1.0`` from a reference not set, or an index past
     ``data.qpos``) again, as a ``TypeError`` if it was one and a ``ValueError`` otherwise, with the
@@ -387,13 +404,18 @@ def _controller_failed(err: Exception, model: mujoco.MjModel, data: mujoco.MjDat
     index out of range also the sizes the model's state has."""
     kind = TypeError if isinstance(err, TypeError) else ValueError
     message = f"{CONTROLLER_RAISED} {type(err).__name__} at t = {data.time:.4f} s: {str(err).rstrip()}"
-    if isinstance(err, np.linalg.LinAlgError):
+    if isinstance(err, np.linalg.LinAlgError) and "square" in str(err):
+        message += (
+            ". np.linalg.solve and inv take a square matrix: a site Jacobian (site_jacobian) has 6 rows, "
+            "translation then rotation, so a position task takes its first three, J[:3]"
+        )
+    elif isinstance(err, np.linalg.LinAlgError):
         message += (
             ". A matrix the law solves with or inverts is singular here: the Jacobian when the arm is stretched "
             "out or folded (keep the target inside the workspace, away from its edge), or a matrix of data whose "
             "state was set without mj_forward (on a scratch MjData: mj_kinematics, then mj_comPos)"
         )
-    message += dynamics.full_m_advice(message)
+    message += dynamics.full_m_advice(message) + _other_shape_hint(err)
     if "shape" in message or isinstance(err, IndexError):
         message += (
             f". The model's state has nq = {model.nq}, nv = {model.nv} and nu = {model.nu}: check that "

@@ -221,6 +221,11 @@ def sample(
     duration = validate.number("duration", duration, nonnegative=True)
     offset = validate.number("offset", offset)
     validate.function("reference", reference, validate.REFERENCE)
+    if 0 < duration < dt:
+        raise ValueError(
+            f"duration ({duration:g} s) is shorter than one time step dt ({dt:g} s): the arguments are "
+            "sample(reference, dt, duration)"
+        )
     n = validate.steps(duration, dt) if duration > 0 else 0
     t = np.arange(n + 2) * dt + offset
     try:

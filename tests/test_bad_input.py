@@ -11,8 +11,9 @@ import pytest
 
 import labsupport  # noqa: F401  (before mujoco)
 from labsupport import actuators, book, dynamics, gains, metrics, render, sim, trajectories, validate
-from labsupport.grading import feedback
-from labsupport.plants import load_model
+from labsupport.controllers import single_joint
+from labsupport.grading import check, feedback
+from labsupport.plants import SingleJoint, load_model
 
 RAGGED = [[1.0, 2.0], [3.0]]
 HUGE = 10**400  # a Python integer beyond the largest float
@@ -112,6 +113,47 @@ CASES = {
         lambda a, g: sim.site_positions(a[0], [[0.1, 0.2], [np.nan, 0.0]], 0),
         "q must be finite: row 1 is not",
     ),
+    # the mistakes a student makes in the notebooks' own calls, each named with what to do
+    "sample's dt and duration swapped": (
+        lambda a, g: trajectories.sample(lambda t: trajectories.set_point(t, 1.0), 12.0, 0.002),
+        r"duration \(0.002 s\) is shorter than one time step dt \(12 s\): "
+        r"the arguments are sample\(reference, dt, duration\)",
+    ),
+    "RMS of a run recorded without a reference": (
+        lambda a, g: metrics.rms(g.err),
+        r"the error has 10 samples of no component \(shape \(10, 0\)\).*simulate was given site= and reference=",
+    ),
+    "check's arguments swapped": (
+        lambda a, g: check(globals(), "p1_ik"),
+        r"swapped: call check\('p1_ik', globals\(\)\)",
+    ),
+    "check named by a number": (
+        lambda a, g: check(1, globals()),
+        "first argument is the check's name, such as 'p1_ik'; got 1",
+    ),
+    "a single-joint law handed a Reference whole": (
+        lambda a, g: SingleJoint().simulate(
+            lambda t, x: single_joint.computed_torque(
+                SingleJoint(), x[0], x[1], trajectories.versine(t, 1.0), 5.0, 2.0
+            ),
+            0.1,
+        ),
+        r"missing 2 required positional arguments.*"
+        r"a Reference or Gains passed whole counts as one argument, so unpack it with \*",
+    ),
+    "a single-joint law handed the MuJoCo model": (
+        lambda a, g: sim.simulate(
+            *a,
+            lambda m, d: single_joint.computed_torque(m, d.qpos[0], d.qvel[0], 0.0, 0.0, 0.0, 5.0, 1.0) * np.ones(2),
+            0.01,
+        ),
+        "the single-joint laws of labsupport.controllers.single_joint take a plants.SingleJoint as their model",
+    ),
+    "np.linalg.solve with the site Jacobian's six rows": (
+        lambda a, g: sim.simulate(*a, lambda m, d: np.linalg.solve(dynamics.site_jacobian(m, d, 0), np.zeros(2)), 0.01),
+        r"np.linalg.solve and inv take a square matrix: .* 6 rows, "
+        r"translation then rotation, so a position task takes its first three, J\[:3\]",
+    ),
 }
 
 
@@ -157,3 +199,26 @@ def test_gains_given_as_matrices_are_named_by_the_laws_that_meet_them():
     with pytest.raises(ValueError, match=r"v must have shape \(2,\), got shape \(3,\)") as caught:
         dynamics.mass_times(model, data, np.zeros(3))  # a vector of the wrong size: no word on gains
     assert "gain" not in str(caught.value)
+
+
+def test_a_torque_function_in_the_ts_form_given_to_simulate_is_told_the_form_simulate_calls(arm):
+    with pytest.raises(TypeError, match=r"not subscriptable\. simulate calls controller\(model, data\); .*data\.qpos"):
+        sim.simulate(*arm, lambda t, x: np.array([x[0], x[1]]), 0.01)
+
+
+def test_a_torque_function_that_writes_into_its_state_leaves_the_run_as_it_was():
+    """The state array the solver integrates is not the student's: a function that adds 0.01 to
+    the angle it is handed at every call moved a level joint at rest (no torque, no gravity) by
+    0.07 rad in 0.1 s."""
+
+    def writes(t, x):
+        x[0] += 0.01
+        return 0.0
+
+    log = SingleJoint().simulate(writes, 0.1, state0=(0.5, 0.0))
+    np.testing.assert_array_equal(log.q, 0.5)
+
+
+def test_a_non_square_solve_in_a_problem_law_gets_the_jacobian_rows_hint():
+    said = feedback.raised_text("os_ct_torque", "LinAlgError: Last 2 dimensions of the array must be square")
+    assert said.endswith(feedback.JACOBIAN_ROWS_HINT) and feedback.SINGULAR_HINT not in said

@@ -41,6 +41,7 @@ from labsupport.grading.feedback import (
 )
 from labsupport.grading.stability import Trace, explain_divergence
 from labsupport.sim import CONTROLLER_RAISED, SimulationDiverged, controller_name, state_written
+from labsupport.validate import short
 
 #: Set in the batch grader's sandbox: in-notebook checks then stay quiet (the grader runs its own).
 BATCH_ENV = "LABSUPPORT_GRADING_BATCH"
@@ -68,6 +69,10 @@ def check(name: str, namespace: dict) -> Result | None:
     if os.environ.get(BATCH_ENV):  # in the batch sandbox the check modules are not even present
         print(f"[{name}] checked separately by the batch grader")
         return None
+    if isinstance(name, Mapping) and isinstance(namespace, str):
+        raise ValueError(f"check's two arguments are swapped: call check({namespace!r}, globals())")
+    if not isinstance(name, str):
+        raise ValueError(f"check's first argument is the check's name, such as 'p1_ik'; got {short(name)}")
     if not isinstance(namespace, Mapping):
         raise ValueError(f"check needs the notebook's variables: call check({name!r}, globals())")
     checks = registry()

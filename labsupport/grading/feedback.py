@@ -353,6 +353,8 @@ def raised_text(fname: str, error: str) -> str:
     hint = ""
     if error.startswith("LinAlgError") and "ingular" in error:
         hint = SINGULAR_HINT
+    elif error.startswith("LinAlgError") and "square" in error:  # np.linalg.solve(J, ...) with 6 rows
+        hint = JACOBIAN_ROWS_HINT
     elif re.search(r"\(6,|\b6\)", error) and re.search(r"broadcast|dimension|aligned|shape", error):
         hint = JACOBIAN_ROWS_HINT
     elif re.match(rf"TypeError: (?:\S+\.)?{re.escape(fname)}\(\) .*(?:positional|keyword) argument", error):
