@@ -197,6 +197,13 @@ def solve_mass(model: mujoco.MjModel, data: mujoco.MjData, rhs: np.ndarray) -> n
     return x
 
 
+#: What a law is told whose arrays do not fit the site Jacobian: its six rows.
+SITE_JACOBIAN_ROWS = (
+    'site_jacobian(model, data, "end_effector") has 6 rows, translation then rotation: the position '
+    "task takes rows 0–2, [:3], and so does site_jdot_qdot"
+)
+
+
 def site_jacobian(
     model: mujoco.MjModel, data: mujoco.MjData, site: int | str, out: np.ndarray | None = None
 ) -> np.ndarray:

@@ -405,10 +405,7 @@ def _controller_failed(err: Exception, model: mujoco.MjModel, data: mujoco.MjDat
     kind = TypeError if isinstance(err, TypeError) else ValueError
     message = f"{CONTROLLER_RAISED} {type(err).__name__} at t = {data.time:.4f} s: {str(err).rstrip()}"
     if isinstance(err, np.linalg.LinAlgError) and "square" in str(err):
-        message += (
-            ". np.linalg.solve and inv take a square matrix: a site Jacobian (site_jacobian) has 6 rows, "
-            "translation then rotation, so a position task takes its first three, J[:3]"
-        )
+        message += f". np.linalg.solve and inv take a square matrix; {dynamics.SITE_JACOBIAN_ROWS}"
     elif isinstance(err, np.linalg.LinAlgError):
         message += (
             ". A matrix the law solves with or inverts is singular here: the Jacobian when the arm is stretched "

@@ -151,8 +151,8 @@ CASES = {
     ),
     "np.linalg.solve with the site Jacobian's six rows": (
         lambda a, g: sim.simulate(*a, lambda m, d: np.linalg.solve(dynamics.site_jacobian(m, d, 0), np.zeros(2)), 0.01),
-        r"np.linalg.solve and inv take a square matrix: .* 6 rows, "
-        r"translation then rotation, so a position task takes its first three, J\[:3\]",
+        r"np.linalg.solve and inv take a square matrix; .* 6 rows, "
+        r"translation then rotation: the position task takes rows 0–2, \[:3\]",
     ),
 }
 

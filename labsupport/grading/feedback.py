@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from labsupport import validate
-from labsupport.dynamics import full_m_advice
+from labsupport.dynamics import SITE_JACOBIAN_ROWS, full_m_advice
 from labsupport.grading.rules import ForbiddenUse, call_watched, forbidden_message, is_forbidden_message
 from labsupport.sim import STATE_WRITE_ADVICE, state_changes
 
@@ -333,10 +333,7 @@ SINGULAR_HINT = (
 
 
 #: Why a law's arrays may not fit together: the site Jacobian's six rows where the task has three.
-JACOBIAN_ROWS_HINT = (
-    ' (site_jacobian(model, data, "end_effector") has 6 rows, translation then rotation: the position '
-    "task takes rows 0–2, [:3], and so does site_jdot_qdot)"
-)
+JACOBIAN_ROWS_HINT = f" ({SITE_JACOBIAN_ROWS})"
 
 
 #: Why a law may be called with more or fewer arguments than it takes: a signature other than the
