@@ -137,12 +137,14 @@ def mass_times(model: mujoco.MjModel, data: mujoco.MjData, v: np.ndarray, out: n
 
 
 def _gain_matrix_hint(value) -> str:
-    """Why a control law's acceleration may have come out as a matrix: its gains were."""
+    """Why a control law's acceleration may have come out as a matrix: its gains were, or its
+    reference was a whole ``Reference`` where the law takes its three parts."""
     if np.ndim(value) != 2:
         return ""
     return (
         "; in a control law this is the acceleration, which a gain given as a matrix makes a "
-        "matrix too: pass Kp and Kd as numbers (or one number per joint or coordinate)"
+        "matrix too: pass Kp and Kd as numbers (or one number per joint or coordinate); so does a "
+        "Reference passed whole as the desired position: unpack it, as in *ref.at(t)"
     )
 
 

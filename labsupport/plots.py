@@ -207,6 +207,7 @@ def single_joint_figure(
     order; the legend is on every side-by-side panel, on the top one when stacked.
     """
     quantities = [quantities] if isinstance(quantities, str) else list(quantities)  # one panel by name
+    titles = [titles] if isinstance(titles, str) else list(titles)  # one title, not one letter a panel
     n = len(quantities)
     if not n:
         raise ValueError(f"name at least one quantity to plot, from {list(SINGLE_JOINT_QUANTITIES)}")

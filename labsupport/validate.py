@@ -77,6 +77,8 @@ def number(name: str, value, *, positive: bool = False, nonnegative: bool = Fals
     """
     if isinstance(value, (bool, np.bool_)):
         raise ValueError(f"{name} must be a number, got the boolean {value!r}")
+    if value is None:
+        raise ValueError(f"{name} must be a number, got None (a value never set?)")
     not_text(name, value)
     array = floats(value)
     if array is None or array.size != 1:

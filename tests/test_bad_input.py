@@ -123,6 +123,10 @@ CASES = {
         lambda a, g: metrics.rms(g.err),
         r"the error has 10 samples of no component \(shape \(10, 0\)\).*simulate was given site= and reference=",
     ),
+    "a duration never set": (
+        lambda a, g: sim.simulate(*a, lambda m, d: d.qfrc_bias.copy(), None),
+        r"duration must be a number, got None \(a value never set\?\)",
+    ),
     "check's arguments swapped": (
         lambda a, g: check(globals(), "p1_ik"),
         r"swapped: call check\('p1_ik', globals\(\)\)",
@@ -196,6 +200,8 @@ def test_gains_given_as_matrices_are_named_by_the_laws_that_meet_them():
         ct_joint_torque(model, data, zero, zero, zero, matrix, 20.0)
     with pytest.raises(ValueError, match=hint):
         os_ct_torque(model, data, "end_effector", np.array([0.5, 0.2]), zero, zero, matrix, 20.0)
+    with pytest.raises(ValueError, match=r"(?s)got shape \(3, 2\).*a Reference passed whole .* unpack it, as in \*ref"):
+        ct_joint_torque(model, data, trajectories.Reference(zero, zero, zero), zero, zero, 100.0, 20.0)
     with pytest.raises(ValueError, match=r"v must have shape \(2,\), got shape \(3,\)") as caught:
         dynamics.mass_times(model, data, np.zeros(3))  # a vector of the wrong size: no word on gains
     assert "gain" not in str(caught.value)
@@ -222,3 +228,13 @@ def test_a_torque_function_that_writes_into_its_state_leaves_the_run_as_it_was()
 def test_a_non_square_solve_in_a_problem_law_gets_the_jacobian_rows_hint():
     said = feedback.raised_text("os_ct_torque", "LinAlgError: Last 2 dimensions of the array must be square")
     assert said.endswith(feedback.JACOBIAN_ROWS_HINT) and feedback.SINGULAR_HINT not in said
+
+
+def test_one_title_given_as_text_titles_the_first_panel_whole():
+    """``titles="Free response"`` titled two panels "F" and "r"."""
+    from labsupport import plots
+
+    log = SingleJoint().simulate(lambda t, x: -x[0], 0.2, state0=(0.3, 0.0))
+    fig = plots.single_joint_figure({"free": log}, ["angle", "rate"], titles="Free response")
+    assert [ax.get_title() for ax in fig.axes] == ["Free response", ""]
+    plots.plt.close(fig)

@@ -636,7 +636,7 @@ def test_render_names_the_cameras_and_refuses_a_reference_beyond_3d():
         plots.frame_indices(len(log.t), model.opt.timestep, fps=0)
     for kwargs, message in (
         ({"fps": "12"}, "fps must be numbers"),
-        ({"trace_step": None}, "trace_step must be finite"),
+        ({"trace_step": None}, "trace_step must be a number, got None"),
         ({"target_quat": (1.0, 0.0, 0.0)}, r"target_quat \(w, x, y, z\) must have shape \(4,\)"),
         ({"target_quat": (0.0, 0.0, 0.0, 0.0)}, "target_quat must be a unit quaternion"),
         ({"progress": "no"}, "progress must be True or False"),
