@@ -475,6 +475,13 @@ def video_html(
             "frames must be a video: an (F, height, width, 3) array of F >= 1 RGB frames (render_run makes "
             f"one), got shape {frames.shape}; for a single picture use show_picture"
         )
+    if frames.dtype.kind not in "uf" or (frames.dtype.kind == "u" and frames.itemsize > 2):
+        raise ValueError(
+            f"frames must be 8-bit colours (uint8, 0 to 255, as render_run makes them) or floats from 0 to 1, got "
+            f"{frames.dtype}: convert with np.clip(frames, 0, 255).astype(np.uint8)"
+        )
+    if frames.dtype.kind == "f" and not np.isfinite(frames).all():
+        raise ValueError("frames must be finite: the video holds NaN or infinite colours")
     fps = validate.number("fps", fps, positive=True)
     qp = validate.whole("qp", qp, 0, 51)  # H.264's range: 0 is lossless, 51 the coarsest
     require_ffmpeg()

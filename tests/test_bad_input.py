@@ -104,6 +104,16 @@ CASES = {
         ),
         "qp must be a whole number from 0 to 51, got -1",
     ),
+    "video frames of 64-bit integers": (
+        lambda a, g: render.video_html(
+            np.full((2, 16, 16, 3), 300), 12, description="the arm traces a circle in the plane"
+        ),
+        r"frames must be 8-bit colours \(uint8, 0 to 255.*got int64: convert with np.clip",
+    ),
+    "video frames not finite": (
+        lambda a, g: render.video_html(np.full((2, 16, 16, 3), np.nan), 12, description="the arm traces a circle"),
+        "frames must be finite: the video holds NaN",
+    ),
     "text alternative an array": (lambda a, g: book.text_alternative(np.ones(3)), "needs a text alternative"),
     "initial state holding None": (
         lambda a, g: sim.simulate(*a, lambda m, d: d.qfrc_bias.copy(), 0.01, q0=[0.1, None]),
