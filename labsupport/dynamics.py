@@ -300,9 +300,15 @@ def jacobian_solve(
         ) from None
     d, nv = J.shape if J.ndim == 2 else (-1, -1)
     if rhs.shape != (d,) or d > nv:
+        more = (
+            f": a task of {d} coordinates for {nv} joints has no inverse, so give the target as many "
+            "coordinates as the arm has joints, (x, y) for the planar arm"
+            if d > nv
+            else _gain_matrix_hint(rhs)
+        )
         raise ValueError(
             f"jacobian_solve needs a (d, nv) Jacobian with d <= nv and a (d,) right-hand side, "
-            f"got J of shape {J.shape} and rhs of shape {rhs.shape}{_gain_matrix_hint(rhs)}"
+            f"got J of shape {J.shape} and rhs of shape {rhs.shape}{more}"
         )
     JJt = J.dot(J.T)
     try:

@@ -12,6 +12,7 @@ import pytest
 import labsupport  # noqa: F401  (before mujoco)
 from labsupport import actuators, book, dynamics, gains, metrics, render, sim, trajectories, validate
 from labsupport.controllers import single_joint
+from labsupport.controllers.operational_space import os_ct_torque
 from labsupport.grading import check, feedback
 from labsupport.plants import SingleJoint, load_model
 
@@ -103,6 +104,10 @@ CASES = {
             np.zeros((2, 16, 16, 3), np.uint8), 12, description="the arm traces a circle in the plane", qp=-1
         ),
         "qp must be a whole number from 0 to 51, got -1",
+    ),
+    "a 3-D target for the planar arm's OS-CT": (
+        lambda a, g: os_ct_torque(*a, "end_effector", np.array([0.5, 0.2, 0.0]), np.zeros(3), np.zeros(3), 64.0, 16.0),
+        r"a task of 3 coordinates for 2 joints has no inverse, so give the target as many coordinates as the arm",
     ),
     "video frames of 64-bit integers": (
         lambda a, g: render.video_html(
@@ -200,7 +205,6 @@ def test_gains_given_as_matrices_are_named_by_the_laws_that_meet_them():
     import mujoco
 
     from labsupport.controllers.joint_space import ct_joint_torque
-    from labsupport.controllers.operational_space import os_ct_torque
 
     model, data = load_model("planar_2r")
     mujoco.mj_forward(model, data)
