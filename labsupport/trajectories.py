@@ -170,6 +170,13 @@ class SampledReference:
     acc: np.ndarray
     offset: float = 0.0
 
+    def __post_init__(self):
+        validate.number("dt", self.dt, positive=True)
+        validate.number("offset", self.offset)
+        counts = {name: len(np.atleast_1d(getattr(self, name))) for name in ("pos", "vel", "acc")}
+        if len(set(counts.values())) != 1:
+            raise ValueError(f"pos, vel and acc must hold one sample per grid time each, got {counts} samples")
+
     def index(self, t) -> int:
         """Index of the grid point nearest ``t``; ``ValueError`` for a time that is not a finite
         number or lies past the sampled span."""

@@ -109,6 +109,14 @@ CASES = {
         lambda a, g: os_ct_torque(*a, "end_effector", np.array([0.5, 0.2, 0.0]), np.zeros(3), np.zeros(3), 64.0, 16.0),
         r"a task of 3 coordinates for 2 joints has no inverse, so give the target as many coordinates as the arm",
     ),
+    "a sampled reference built by hand with a missing sample": (
+        lambda a, g: trajectories.SampledReference(0.002, np.zeros((5, 3)), np.zeros((4, 3)), np.zeros((5, 3))),
+        r"pos, vel and acc must hold one sample per grid time each, got \{'pos': 5, 'vel': 4, 'acc': 5\} samples",
+    ),
+    "a sampled reference built by hand with no time step": (
+        lambda a, g: trajectories.SampledReference(0.0, np.zeros(5), np.zeros(5), np.zeros(5)),
+        "dt must be positive, got 0.0",
+    ),
     "video frames of 64-bit integers": (
         lambda a, g: render.video_html(
             np.full((2, 16, 16, 3), 300), 12, description="the arm traces a circle in the plane"
