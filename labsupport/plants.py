@@ -73,11 +73,15 @@ class SingleJoint:
     g: float = 0.0
 
     def __post_init__(self):
-        validate.number("M (inertia about the joint)", self.M, positive=True)
-        validate.number("m (link mass)", self.m, nonnegative=True)
-        validate.number("r (joint to centre of mass)", self.r)
-        validate.number("b (viscous friction)", self.b, nonnegative=True)
-        validate.number("g (gravity)", self.g)
+        checked = {
+            "M": validate.number("M (inertia about the joint)", self.M, positive=True),
+            "m": validate.number("m (link mass)", self.m, nonnegative=True),
+            "r": validate.number("r (joint to centre of mass)", self.r),
+            "b": validate.number("b (viscous friction)", self.b, nonnegative=True),
+            "g": validate.number("g (gravity)", self.g),
+        }
+        for name, value in checked.items():  # a float, however the number was given ([0.1] too)
+            object.__setattr__(self, name, value)
 
     @property
     def max_gravity_torque(self) -> float:

@@ -260,3 +260,13 @@ def test_one_title_given_as_text_titles_the_first_panel_whole():
     fig = plots.single_joint_figure({"free": log}, ["angle", "rate"], titles="Free response")
     assert [ax.get_title() for ax in fig.axes] == ["Free response", ""]
     plots.plt.close(fig)
+
+
+def test_a_plant_parameter_given_as_a_one_element_list_is_kept_as_its_number():
+    """``SingleJoint(b=[0.1])`` was accepted, then ``simulate`` failed with "can't multiply
+    sequence by non-int"; the run now equals that of ``b=0.1``."""
+    as_list, as_number = SingleJoint(b=[0.1]), SingleJoint(b=0.1)
+    assert as_list == as_number and isinstance(as_list.b, float)
+    np.testing.assert_array_equal(
+        as_list.simulate(lambda t, x: 0.2, 0.1).q, as_number.simulate(lambda t, x: 0.2, 0.1).q
+    )
