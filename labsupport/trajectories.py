@@ -171,8 +171,8 @@ class SampledReference:
     offset: float = 0.0
 
     def __post_init__(self):
-        validate.number("dt", self.dt, positive=True)
-        validate.number("offset", self.offset)
+        object.__setattr__(self, "dt", validate.number("dt", self.dt, positive=True))  # floats, as SingleJoint's
+        object.__setattr__(self, "offset", validate.number("offset", self.offset))
         counts = {name: len(np.atleast_1d(getattr(self, name))) for name in ("pos", "vel", "acc")}
         if len(set(counts.values())) != 1:
             raise ValueError(f"pos, vel and acc must hold one sample per grid time each, got {counts} samples")

@@ -270,3 +270,9 @@ def test_a_plant_parameter_given_as_a_one_element_list_is_kept_as_its_number():
     np.testing.assert_array_equal(
         as_list.simulate(lambda t, x: 0.2, 0.1).q, as_number.simulate(lambda t, x: 0.2, 0.1).q
     )
+
+
+def test_a_sampled_reference_keeps_its_time_step_as_a_number():
+    """A time step given as ``[0.5]`` passed the check and stayed a list in ``dt``."""
+    ref = trajectories.SampledReference([0.5], np.arange(3.0), np.zeros(3), np.zeros(3))
+    assert isinstance(ref.dt, float) and ref.at(1.0).pos == 2.0 and ref.index(0.6) == 1
