@@ -99,3 +99,25 @@ def sync_install_cells() -> list[Path]:
 if __name__ == "__main__":
     for changed_path in sync_install_cells():
         print(f"updated the install cell of {changed_path.relative_to(ROOT)}")
+
+
+#: Where Colab installs labsupport: a law compiled there names this file, not this checkout's.
+COLAB_SITE_PACKAGES = "/usr/local/lib/python3.11/dist-packages"
+
+
+def carried_code(fn, site_packages: str = COLAB_SITE_PACKAGES) -> str:
+    """``fn``'s code as a student may carry it from their own installation into a notebook:
+    marshalled and base64-encoded, every code object in it naming the file that installation
+    holds (``site_packages/labsupport/...``). It loads only on this Python version, so tests
+    make it when they run rather than commit it."""
+    import base64
+    import marshal
+
+    package = Path(__import__("labsupport").__file__).resolve().parent
+    filename = f"{site_packages}/labsupport/{Path(fn.__code__.co_filename).resolve().relative_to(package)}"
+
+    def moved(code):
+        consts = tuple(moved(c) if hasattr(c, "co_filename") else c for c in code.co_consts)
+        return code.replace(co_filename=filename, co_consts=consts)
+
+    return base64.b64encode(marshal.dumps(moved(fn.__code__))).decode()

@@ -20,6 +20,7 @@ import mujoco
 import nbformat
 import numpy as np
 import pytest
+from nbtools import carried_code
 
 import labsupport
 import labsupport.controllers.joint_space as joint_space_alias
@@ -1138,6 +1139,29 @@ def test_one_law_handed_in_for_both_earns_no_tracking_credit_for_the_copy(master
     assert grade("p2_track", seed, ct_op_torque=op, ct_ik_joint_torque=ik_ct).score == 1
 
 
+def test_a_previous_q_kept_as_a_view_of_data_is_graded_as_it_runs():
+    """A finite-difference J̇q̇ whose "previous" q is ``data.qpos`` itself, not a copy: in a run
+    (one MjData throughout) that q is always the current one, so J̇q̇ is zero. The in-notebook
+    check handed each call a fresh MjData, the old values lived on behind the view, and the
+    check gave the law full marks where the batch grader (one MjData) took the J̇q̇ points."""
+    last = {}
+
+    def ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        jdq = np.zeros(3)
+        if "q" in last and 0 < data.time - last["t"] <= 0.01:
+            J_then, J_now = jacobian_at(model, last["q"])[0], jacobian_at(model, data.qpos)[0]
+            jdq = (J_now - J_then) / (data.time - last["t"]) @ data.qvel
+        last["q"], last["t"] = data.qpos, data.time  # the slip: a view, not data.qpos.copy()
+        return os_law(model, data, x_d, xd_d, xdd_d, Kp, Kd, jdq)
+
+    with_view = grade("p2_osct", OTHER_SEED, ct_op_torque=ct_op_torque)
+    dropped = grade("p2_osct", OTHER_SEED, ct_op_torque=os_no_jdot)
+    assert with_view.score == dropped.score < 1, (with_view, dropped)
+    last.clear()
+    with_copy = grade("p2_osct", OTHER_SEED, ct_op_torque=os_fd_time())
+    assert with_copy.score == 1, with_copy
+
+
 def test_finite_difference_jdot_tracks_and_never_scores_below_dropping_it(master2):
     fd = {"ct_op_torque": os_fd_time(), "ct_ik_joint_torque": ik_ct_fd_time(master2["ik_3r"])}
     dropped = {"ct_op_torque": os_no_jdot, "ct_ik_joint_torque": master2["ct_ik_joint_torque"]}
@@ -1272,6 +1296,47 @@ def test_calling_labsupports_kinematics_scores_zero(master1):
 
     result = grade("p1_ik", ik_3r=ik_through_2r)
     assert result.score == 0 and rules.MARKER in result.message and "labsupport.kinematics" in result.message
+
+
+def test_a_law_carried_as_compiled_code_from_another_installation_is_named():
+    """A Task law's code object marshalled on the student's own installation (Colab's) and
+    rebuilt with FunctionType under an allowed module's globals: nothing is imported, and its
+    code names a file this machine does not have. The watch names it by its path from the
+    package's folder on."""
+    import base64
+    import marshal
+
+    code = marshal.loads(base64.b64decode(carried_code(joint_space_alias.ct_joint_torque)))
+    assert code.co_filename.startswith("/usr/local/lib/") and not Path(code.co_filename).exists()
+    law = types.FunctionType(code, vars(labsupport.dynamics))
+
+    def carried(model, data, q_d, Kp, Kd):
+        return law(model, data, q_d, np.zeros(3), np.zeros(3), Kp, Kd)
+
+    result = grade("p1_ct", ct_joint_torque=carried)
+    assert result.score == 0 and "labsupport.controllers.joint_space.ct_joint_torque is off limits" in result.message
+
+
+@pytest.mark.parametrize(
+    ("filename", "module"),
+    [
+        (
+            "/usr/local/lib/python3.11/dist-packages/labsupport/controllers/joint_space.py",
+            "labsupport.controllers.joint_space",
+        ),
+        ("C:\\Users\\me\\site-packages\\labsupport\\kinematics\\planar_2r.py", "labsupport.kinematics.planar_2r"),
+        ("/content/labsupport/labsupport/grading/problem2.py", "labsupport.grading.problem2"),
+        ("/opt/x/labsupport/controllers/__init__.py", "labsupport.controllers"),
+        ("/opt/x/labsupport/controllers/__pycache__/ur5e.cpython-311.pyc", None),  # never a code's file
+        ("/opt/x/labsupport/dynamics.py", None),
+        ("/opt/x/labsupport/grading/rules.py", None),
+        ("/opt/x/my_labsupport/controllers/mine.py", None),
+        ("/opt/x/labsupport/controllers/notes.txt", None),
+        ("<ipython-input-3-0f1>", None),
+    ],
+)
+def test_a_forbidden_module_is_known_by_its_file_wherever_installed(filename, module):
+    assert rules.forbidden_module_of_file(filename) == module
 
 
 def test_a_borrowed_class_is_named_as_the_student_wrote_it():
@@ -1829,9 +1894,26 @@ def test_a_slow_law_is_told_the_batch_graders_cpu_budget(monkeypatch, capsys):
     grading.check("p1_pd", {"pd_torque": slow_pd})
     out = capsys.readouterr().out
     assert out.startswith("✔ [p1_pd]") and "Note: your functions took 0.2" in out
-    assert "s of CPU time in this check, more than the 0.1 s the batch grader gives them" in out
+    assert "s of CPU time in this check, more than the 0.1 s the batch grader allows there" in out
     grading.check("p1_pd", {"pd_torque": lambda model, data, q_d, Kp, Kd: Kp * (q_d - data.qpos) - Kd * data.qvel})
     assert "Note" not in capsys.readouterr().out
+
+
+def test_a_slow_law_of_the_tracking_check_is_told_its_own_share(monkeypatch, capsys, master2):
+    """The tracking check gives each of its two laws half of the check's CPU time, in the batch;
+    the in-notebook note names the law and its half."""
+    import labsupport.grading as grading
+
+    def slow_os_ct(model, data, *args):
+        t0 = time.process_time()
+        while time.process_time() - t0 < 0.0004:
+            pass
+        return master2["ct_op_torque"](model, data, *args)
+
+    monkeypatch.setattr(grading, "CHECK_CPU_SECONDS", 1.0)
+    grading.check("p2_track", {**master2, "ct_op_torque": slow_os_ct})
+    out = capsys.readouterr().out
+    assert "Note: ct_op_torque took " in out and "more than the 0.5 s the batch grader allows there" in out, out
 
 
 def _settings_of(notebook: str, first_name: str) -> dict:

@@ -19,8 +19,9 @@ from pathlib import Path
 import nbformat
 import numpy as np
 import pytest
-from hostile.build import MASTER, _defining, _imports, insert_after, load, unusual_problem2
+from hostile.build import MASTER, _defining, _imports, insert_after, load, replace_function, unusual_problem2
 from nbclient import NotebookClient
+from nbtools import carried_code
 
 from labsupport.grading import PUBLIC_SEED
 from labsupport.instructor import assign, isolation, judge
@@ -139,6 +140,14 @@ EXPECTED = {
             "p1_ct: CT: labsupport.controllers.joint_space.ct_joint_torque is off limits",
         ],
     ),
+    "carries_compiled_law.ipynb": (  # the law's code object carried in marshalled: no import, no file to see
+        {"p1_ik": 3, "p1_pd": 2},
+        "graded",
+        [
+            "p1_ct: CT: labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO",
+            "runs code built while the notebook runs",
+        ],
+    ),
     "copies_law_source.ipynb": (  # the law's source copied with inspect and run with exec: no import to see
         {"p1_ik": 3, "p1_pd": 2},
         "graded",
@@ -190,6 +199,30 @@ EXPECTED = {
 BASELINE = ("master.ipynb", "student.ipynb")
 
 
+def carries_compiled_law() -> str:
+    """The master with TODO 3 answered by Task 3's joint computed torque, carried as its code
+    object marshalled on the student's own installation (:func:`nbtools.carried_code`) and
+    rebuilt with ``types.FunctionType`` under ``labsupport.dynamics``' globals, under aliased
+    names: nothing forbidden is imported, and the code's file is not the sandbox's. Made when
+    the test runs: a marshalled code loads only on the Python that made it."""
+    from labsupport.controllers.joint_space import ct_joint_torque
+
+    source = (
+        "import base64\n"
+        "from marshal import loads as _x\n"
+        "from types import FunctionType as _F\n"
+        "import labsupport.dynamics\n"
+        f"_law = _F(_x(base64.b64decode({carried_code(ct_joint_torque)!r})), vars(labsupport.dynamics))\n\n\n"
+        "def ct_joint_torque(model, data, q_d, Kp, Kd):\n"
+        "    return _law(model, data, q_d, np.zeros(3), np.zeros(3), Kp, Kd)"
+    )
+    return nbformat.writes(replace_function(load(MASTER), "ct_joint_torque", source))
+
+
+#: Submissions made when the tests run, not committed under tests/hostile: ``{file: maker}``.
+MADE_HERE = {"carries_compiled_law.ipynb": carries_compiled_law}
+
+
 def _tree_hash(*folders: Path) -> str:
     """Hash of every file under ``folders`` (names and bytes)."""
     h = hashlib.sha256()
@@ -218,6 +251,8 @@ def _submissions(folder: Path, names) -> Path:
             shutil.copy(ROOT / "notebooks" / "masters" / "problem1_reaching.ipynb", folder / name)
         elif name == "student.ipynb":
             shutil.copy(ROOT / "notebooks" / "problem1_reaching.ipynb", folder / name)
+        elif name in MADE_HERE:
+            (folder / name).write_text(MADE_HERE[name](), encoding="utf-8")
         else:
             shutil.copy(HOSTILE / name, folder / name)
     return folder
@@ -306,7 +341,7 @@ def _hostile_batches(tmp: Path, base: Path, everything: Path, subs_before: str, 
 
 
 def test_hostile_set_is_committed_and_up_to_date():
-    assert {p.name for p in HOSTILE.glob("*.ipynb")} == set(EXPECTED) - set(BASELINE)
+    assert {p.name for p in HOSTILE.glob("*.ipynb")} == set(EXPECTED) - set(BASELINE) - set(MADE_HERE)
     proc = subprocess.run([sys.executable, str(HOSTILE / "build.py"), "--check"], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
 
@@ -362,12 +397,18 @@ def test_code_built_at_run_time_is_named_and_code_as_written_is_not():
         (6, "import marshal\nf = marshal.loads(data)"),
         (7, "def broken(:"),
         (8, "handlers[0](x)\nmake_law()(x)\nlaws.pd.torque(x)\nexec"),  # calls of a subscript, a call, a chain
+        (9, "from marshal import loads as _x\nimport types as t\nfrom types import FunctionType as F"),
+        (10, "law = F(_x(blob), globals())"),  # names imported in an earlier cell, aliased
+        (11, "code = t.CodeType(*fields)"),
+        (12, "from json import loads\nloads(text)\nimport pickle as marshal_\nmarshal_.loads(b)"),
     ]
     assert judge.code_built_at_run_time(cells) == [
         "cell 3 ('import base64, zlib')",
         "cell 4 ('%time')",
         "cell 6 ('import builtins')",
         "cell 7 ('import marshal')",
+        "cell 11 ('law = F(_x(blob), globals())')",
+        "cell 12 ('code = t.CodeType(*fields)')",
     ]
 
 
@@ -928,6 +969,34 @@ def test_masters_and_unusual_right_answers_get_full_marks_on_problem2(tmp_path):
         assert rows[name]["total"] == "10", (name, rows[name]["reason"])
     assert rows["student.ipynb"]["total"] == "0"
     assert "p2_osct: not implemented yet" in rows["student.ipynb"]["reason"]
+
+
+def test_a_slow_law_costs_only_its_own_share_of_the_tracking_check(tmp_path):
+    """The tracking check runs two laws, each with half of the check's CPU time (6 ms a control
+    step here; 12 ms under the default budget, as the notebook says). The master's OS-CT made
+    slow after the notebook's own runs (20 ms of CPU a call) loses its half; the right and fast
+    IK + joint CT that runs after it keeps its half, where one budget for both had lost it too."""
+    nb = nbformat.read(ROOT / "notebooks" / "masters" / "problem2_tracking.ipynb", as_version=4)
+    slow = (
+        "import time\n"
+        "honest_os_ct = ct_op_torque\n"
+        "def ct_op_torque(model, data, *args):\n"
+        "    start = time.process_time()\n"
+        "    while time.process_time() - start < 0.02:\n"
+        "        pass\n"
+        "    return honest_os_ct(model, data, *args)"
+    )
+    nb = insert_after(nb, len(nb.cells) - 1, slow)
+    subs = tmp_path / "subs"
+    subs.mkdir()
+    nbformat.write(nb, subs / "slow_os_ct.ipynb")
+    budget = Budget(cell=30, run=120, call=3, check=30, idle=4, run_idle=12, check_idle=4)
+    (row,) = run_batch(subs, ROOT / "tests" / "autograder" / "problem2.json", tmp_path / "out", jobs=1, budget=budget)
+    assert row["scores"]["p2_track"] == 1.5, row
+    assert row["scores"]["p2_osct"] == 3 and row["scores"]["p2_ikct"] == 3, row
+    reason = row["messages"]["p2_track"]
+    assert "OS-CT: ct_op_torque did not return: " in reason or "15 s for ct_op_torque" in reason, reason
+    assert "IK+JS-CT: RMS error" in reason, reason
 
 
 def test_the_batch_names_the_line_of_the_students_code_that_raised(tmp_path):

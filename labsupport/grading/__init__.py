@@ -81,23 +81,25 @@ def check(name: str, namespace: dict) -> Result | None:
     probe = DirectProbe(namespace)
     result = noting_state_write(checks[name](probe, PUBLIC_SEED), probe)
     print(result)
-    note = cpu_note(probe.cpu_seconds)
+    note = cpu_note(*probe.busiest)
     if note:
         print(note)
     return result
 
 
-def cpu_note(seconds: float) -> str:
-    """A warning when the student's functions took more than half the CPU time the batch grader
-    gives them over one check (:data:`~labsupport.grading.feedback.CHECK_CPU_SECONDS`), else ``""``."""
-    if seconds <= CHECK_CPU_SECONDS / 2:
+def cpu_note(who: str, seconds: float, share: float = 1.0) -> str:
+    """A warning when ``who`` (the student's functions, or one law of a check that gives each of
+    its laws a ``share``) took more than half the CPU time the batch grader gives them there,
+    ``share`` × :data:`~labsupport.grading.feedback.CHECK_CPU_SECONDS`, else ``""``."""
+    limit = share * CHECK_CPU_SECONDS
+    if seconds <= limit / 2:
         return ""
-    verdict = "more than" if seconds > CHECK_CPU_SECONDS else "over half of"
+    verdict = "more than" if seconds > limit else "over half of"
     return (
-        f"  Note: your functions took {seconds:.3g} s of CPU time in this check, {verdict} the "
-        f"{CHECK_CPU_SECONDS:g} s the batch grader gives them per check (on a machine that may be slower "
-        "than this one); past that, the check scores zero there. Make them faster: a closed-form IK instead "
-        "of an optimiser, fewer iterations, no work repeated at every control step."
+        f"  Note: {who} took {seconds:.3g} s of CPU time in this check, {verdict} the {limit:g} s the batch "
+        "grader allows there (on a machine that may be slower than this one); past that, the check scores zero "
+        "there. Make them faster: a closed-form IK instead of an optimiser, fewer iterations, no work repeated "
+        "at every control step."
     )
 
 

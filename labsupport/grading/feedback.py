@@ -219,6 +219,12 @@ class Probe:
         if changed and self.state_write is None:
             self.state_write = (fname, list(changed))
 
+    def begin_part(self, label: str, share: float) -> None:
+        """Start a part of a check whose calls may use ``share`` of the check's CPU and idle
+        budgets (:data:`CHECK_CPU_SECONDS`), as ``label``: the tracking check gives each of its
+        two laws half, so that a slow law cannot use up the other's time. A check begins as one
+        part, its whole. A probe that enforces no budget only notes the part's CPU time."""
+
     def call(self, fname: str, *args, **kwargs):
         """Call the student's function ``fname``; returns its value (arrays as arrays) or raises StudentError."""
         raise NotImplementedError
@@ -234,17 +240,31 @@ class DirectProbe(Probe):
 
     namespace: dict
     _model: Any = field(default=None, repr=False)
+    _data: Any = field(default=None, repr=False)
     #: CPU time the student's functions took in this probe's calls [s].
     cpu_seconds: float = 0.0
+    #: The part of the check that came nearest its share of the CPU budget: ``(label, seconds, share)``.
+    busiest: tuple[str, float, float] = ("your functions", 0.0, 1.0)
+    _part: list = field(default_factory=lambda: ["your functions", 0.0, 1.0], repr=False)
+
+    def begin_part(self, label: str, share: float) -> None:
+        self._part = [label, 0.0, share]
 
     def _model_data(self, state: State):
+        """The 3R arm's model and the probe's one ``MjData``, reset and set to ``state`` (then
+        ``mj_forward``). One data for every call, as in the batch sandbox and in a run: a law
+        that keeps a view of ``data.qpos`` from one call to the next (a finite difference's
+        "previous" q) finds it changed, as it would in a run. A fresh data for each call kept
+        the old values alive behind the view, and the check passed a law that runs wrong."""
         import mujoco
 
         from labsupport.plants import load_model
 
         if self._model is None:
             self._model, _ = load_model("spatial_3r")
-        data = mujoco.MjData(self._model)
+            self._data = mujoco.MjData(self._model)
+        data = self._data
+        mujoco.mj_resetData(self._model, data)
         data.qpos[:] = state.q
         data.qvel[:] = state.qdot
         data.time = state.t
@@ -252,7 +272,7 @@ class DirectProbe(Probe):
         return self._model, data
 
     def _expand(self, args):
-        """The arguments as the student's function gets them: a State as fresh (model, data), and
+        """The arguments as the student's function gets them: a State as (model, data), and
         every array or list a copy, so that a function that changes its arguments in place does
         not change the check's own targets (as in the batch grader, which sends copies). Also
         returns each State with the data made of it, to see whether the call changed it."""
@@ -296,7 +316,11 @@ class DirectProbe(Probe):
                 raised_text(fname, f"{type(err).__name__}: {str(err).rstrip()}") + where_raised(err)
             ) from None
         finally:
-            self.cpu_seconds += time.process_time() - start
+            spent = time.process_time() - start
+            self.cpu_seconds += spent
+            self._part[1] += spent
+            if self._part[1] / self._part[2] > self.busiest[1] / self.busiest[2]:
+                self.busiest = tuple(self._part)
         if used is not None:
             raise ForbiddenCall(forbidden_message(used))
         for state, data in handed:

@@ -584,6 +584,7 @@ def check_tracking(probe: Probe, seed: int) -> Result:
 
     score, notes, statuses = 0.0, [], []
     for fname, label in (("ct_op_torque", "OS-CT"), ("ct_ik_joint_torque", "IK+JS-CT")):
+        probe.begin_part(fname, 0.5)  # each law its own half of the time: a slow one costs only its own points
         borrowed = _other_laws_torque(probe, seed, fname)
         if borrowed:
             notes.append(f"{label}: {borrowed}")

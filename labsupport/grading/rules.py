@@ -10,12 +10,14 @@ Two places enforce it:
 
 * the in-notebook check calls the student's function under :func:`call_watched`, which notes
   every Python function the call runs, in its own thread and in threads it starts, and flags
-  one defined in a :data:`FORBIDDEN` module, by module name or by source file (so a function
-  imported under another name, loaded from its file as another module, or rebuilt from its
-  code object is still caught);
+  one defined in a :data:`FORBIDDEN` module, by module name or by source file
+  (:func:`forbidden_module_of_file`: so a function imported under another name, loaded from
+  its file as another module, or rebuilt from its code object, even one marshalled on another
+  installation, is still caught);
 * the batch grader's sandbox replaces the :data:`FORBIDDEN` modules by stubs whose functions
-  raise ``RuntimeError(forbidden_message(name))``; the checks recognise that message
-  (:func:`is_forbidden_message`) and give the same zero with the same reason.
+  raise ``RuntimeError(forbidden_message(name))``, and calls the student's function under the
+  same watch; the checks recognise that message (:func:`is_forbidden_message`) and give the
+  same zero with the same reason.
 
 The batch grader decides. The in-notebook watch runs in the student's own process, so a
 student set on hiding a call can: turn the watch off and on again within the call, run the
@@ -27,7 +29,6 @@ zero with the same reason: the source ``inspect`` finds there is the stub's, whi
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import sys
 import threading
@@ -104,49 +105,32 @@ def is_forbidden_module(module: str) -> bool:
     return any(module == p or module.startswith(p + ".") for p in FORBIDDEN)
 
 
-@cache
-def forbidden_files() -> dict[str, str]:
-    """``{source path: module}`` for the files of the :data:`FORBIDDEN` modules that exist (a
-    package's path is its folder, ending in a separator)."""
-    files = {}
-    for module in FORBIDDEN:
-        try:
-            spec = importlib.util.find_spec(module)
-        except (ImportError, ValueError):
-            continue
-        if spec is None:
-            continue
-        if spec.submodule_search_locations:
-            for folder in spec.submodule_search_locations:
-                files[os.path.join(os.path.realpath(folder), "")] = module
-        elif spec.origin:
-            files[os.path.realpath(spec.origin)] = module
-    return files
-
-
 def _forbidden_module_of(frame) -> str | None:
     """The :data:`FORBIDDEN` module the function running in ``frame`` comes from, by its
     globals' ``__name__`` or its code's source file, else ``None``."""
     module = frame.f_globals.get("__name__", "")
     if module.startswith("labsupport.") and is_forbidden_module(module):
         return module
-    return _forbidden_module_of_file(frame.f_code.co_filename)
+    return forbidden_module_of_file(frame.f_code.co_filename)
 
 
 @cache
-def _forbidden_module_of_file(filename: str) -> str | None:
-    """The :data:`FORBIDDEN` module whose source file is ``filename``, else ``None`` (cached:
-    the watch asks for every call)."""
+def forbidden_module_of_file(filename: str) -> str | None:
+    """The :data:`FORBIDDEN` module whose source file ``filename`` is, else ``None``: the dotted
+    name of its path from the last folder named ``labsupport`` on (links resolved), so a file of
+    the package found wherever it is installed, on this machine or on another, is the same
+    module. A code object keeps the file it was compiled from: a law's code carried from a
+    student's own installation (``marshal.dumps(law.__code__)``) and rebuilt in the notebook
+    still names its file there. Cached: the watch asks for every call."""
     if filename.startswith("<"):  # code typed in a cell or built from a string
         return None
-    filename = os.path.realpath(filename)
-    for path, owner in forbidden_files().items():
-        if filename == path:
-            return owner
-        if path.endswith(os.sep) and filename.startswith(path):
-            rest = os.path.splitext(filename[len(path) :])[0].replace(os.sep, ".")
-            return owner if rest == "__init__" else f"{owner}.{rest}"
-    return None
+    path = os.path.realpath(filename).replace("\\", "/")
+    start = path.rfind("/labsupport/")
+    stem, ext = os.path.splitext(path[start + 1 :])
+    if start < 0 or ext != ".py":
+        return None
+    module = stem.replace("/", ".").removesuffix(".__init__")
+    return module if is_forbidden_module(module) else None
 
 
 def _called_name(frame) -> str:
@@ -183,9 +167,10 @@ def call_watched(fn: Callable, *args, **kwargs):
     previous, previous_threads = sys.getprofile(), threading.getprofile()
 
     def watch(frame, event, arg):
-        # a module's own top-level code (importing it inside the call) is not a use: the call
+        # a module's own top-level code (importing it inside the call) is not a use, nor is its
+        # __getattr__ (PEP 562), which an import asks for names such as __path__: the call
         # into it that follows is, and is named by the function called
-        if event == "call" and not used and frame.f_code.co_name != "<module>":
+        if event == "call" and not used and _called_name(frame) not in ("<module>", "__getattr__"):
             module = _forbidden_module_of(frame)
             if module is not None:
                 used.append(f"{module}.{_called_name(frame)}")

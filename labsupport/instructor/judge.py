@@ -154,6 +154,10 @@ def tree_cpu(root: int) -> float:
     return sum(cpu.get(p, 0) for p in members) / os.sysconf("SC_CLK_TCK")
 
 
+#: What a check's budget is for, where the check is not split into parts.
+WHOLE = "the submission's code"
+
+
 class SandboxProbe(Probe):
     """A :class:`Probe` whose calls go to a sandbox that ran the submission's cells."""
 
@@ -174,12 +178,16 @@ class SandboxProbe(Probe):
         self.unread = bytearray()  # what the sandbox sent after its last complete line
         self.starts = 0
         self.wall_deadline = time.monotonic() + budget.wall
-        self.check_cpu_left = float("inf")  # set by the judge for each check
-        self.check_idle_left = float("inf")  # likewise
+        self.begin_part(WHOLE, 1.0)  # again for each check, and each part of one
         self.cpu_seen = 0.0
         self.server: tuple[int, int] | None = None  # (sandbox pid, its cell server's pid)
         self.first_run: dict | None = None
         self.start_problem: str | None = None
+
+    def begin_part(self, label: str, share: float) -> None:
+        self.part = label
+        self.check_cpu_limit, self.check_idle_limit = share * self.budget.check, share * self.budget.check_idle
+        self.check_cpu_left, self.check_idle_left = self.check_cpu_limit, self.check_idle_limit
 
     # -- process ---------------------------------------------------------------------------------
     def start(self) -> None:
@@ -284,9 +292,7 @@ class SandboxProbe(Probe):
                     self.check_idle_left -= idle
                 self.cpu_seen = cpu
                 if per_check and self.check_cpu_left < 0:
-                    raise StudentTimeout(
-                        f"the check ran out of CPU time ({self.budget.check:g} s for the submission's code)"
-                    )
+                    raise StudentTimeout(f"the check ran out of CPU time ({self.check_cpu_limit:g} s for {self.part})")
                 if per_check and self.check_idle_left < 0:
                     raise StudentTimeout(self._waited_in_all())
                 return answer
@@ -307,7 +313,8 @@ class SandboxProbe(Probe):
 
     def _waited_in_all(self) -> str:
         return (
-            f"over this check, the calls waited more than {self.budget.check_idle:g} s in all without computing "
+            f"over this check, the calls{'' if self.part == WHOLE else ' of ' + self.part} waited more than "
+            f"{self.check_idle_limit:g} s in all without computing "
             "(sleep, input, a blocked read): a control law must return at once"
         )
 
@@ -516,33 +523,67 @@ def read_cells(text: bytes) -> list[tuple[int, str]]:
 #: takes Python's parser about 6 GB and 40 s.
 MAX_CODE_CHARS = 200_000
 
-#: Calls that run code given as data: what they run is not in the notebook's text.
+#: Calls that run code given as data, as their modules name them: what they run is not in the
+#: notebook's text (a code object loaded with ``marshal`` or built with ``types`` may be any
+#: function's, carried from elsewhere).
 _RUNS_DATA = frozenset(
-    {"exec", "eval", "compile", "builtins.exec", "builtins.eval", "builtins.compile", "marshal.loads"}
+    {
+        "exec",
+        "eval",
+        "compile",
+        "builtins.exec",
+        "builtins.eval",
+        "builtins.compile",
+        "marshal.loads",
+        "types.CodeType",
+        "types.FunctionType",
+    }
 )
+
+
+def _imported_names(tree: ast.AST) -> dict[str, str]:
+    """``{name in the code: what it names}`` for the code's imports (``import marshal as m``:
+    ``m`` → ``marshal``; ``from marshal import loads as f``: ``f`` → ``marshal.loads``)."""
+    names = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.asname:
+                    names[alias.asname] = alias.name
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            for alias in node.names:
+                names[alias.asname or alias.name] = f"{node.module}.{alias.name}"
+    return names
 
 
 def code_built_at_run_time(cells: list[tuple[int, str]]) -> list[str]:
     """The cells (as :func:`_cell_named` names them) that run code they build while they run:
-    ``exec``, ``eval`` or ``compile`` of anything but a written-out string, or ``marshal.loads``.
-    The shared-code report compares the code as written, so code decoded from a string (say
-    ``exec(zlib.decompress(base64.b64decode(...)))``) is invisible to it: the instructor reads it.
-    A lead, never a score."""
-    found = []
+    ``exec``, ``eval`` or ``compile`` of anything but a written-out string, a code object loaded
+    with ``marshal.loads``, or a code or function object built with ``types.CodeType`` or
+    ``types.FunctionType``, under whatever name the notebook imported them (``from marshal
+    import loads as f``). The shared-code report compares the code as written, so code decoded
+    from a string (say ``exec(zlib.decompress(base64.b64decode(...)))``) is invisible to it: the
+    instructor reads it. A lead, never a score."""
+    trees = []
     for k, source in cells:
         code = "\n".join("" if line.lstrip().startswith(("%", "!")) else line for line in source.splitlines())
         try:
-            tree = ast.parse(code)
+            trees.append((k, source, ast.parse(code)))
         except (SyntaxError, ValueError, RecursionError, MemoryError):
             continue
+    imported = {}  # a name imported in one cell is used in the cells after it
+    for _, _, tree in trees:
+        imported |= _imported_names(tree)
+    found = []
+    for k, source, tree in trees:
         for node in ast.walk(tree):
             if not isinstance(node, ast.Call):
                 continue
             func = node.func
-            if isinstance(func, ast.Name):  # exec(...), eval(...), compile(...)
-                name = func.id
-            elif isinstance(func, ast.Attribute) and isinstance(func.value, ast.Name):  # builtins.exec, marshal.loads
-                name = f"{func.value.id}.{func.attr}"
+            if isinstance(func, ast.Name):  # exec(...), loads(...) imported from marshal
+                name = imported.get(func.id, func.id)
+            elif isinstance(func, ast.Attribute) and isinstance(func.value, ast.Name):  # marshal.loads, m.loads
+                name = f"{imported.get(func.value.id, func.value.id)}.{func.attr}"
             else:
                 continue
             written_out = node.args and isinstance(node.args[0], ast.Constant) and isinstance(node.args[0].value, str)
@@ -566,8 +607,8 @@ def run_time_code_note(cells: list[tuple[int, str]]) -> str | None:
         return None
     return (
         f"{', '.join(built[:3])} run{'s' if len(built) == 1 else ''} code built while the notebook runs "
-        "(exec, eval or compile of a string it makes), which is not in the notebook's text: the instructor "
-        "reads it by hand"
+        "(exec, eval or compile of a string it makes, or a code object it loads or builds), which is not in "
+        "the notebook's text: the instructor reads it by hand"
     )
 
 
@@ -706,7 +747,7 @@ def grade(
                     + " (no effect on grading: the checks run in a separate process)"
                 )
         for name in names:
-            probe.check_cpu_left, probe.check_idle_left = budget.check, budget.check_idle
+            probe.begin_part(WHOLE, 1.0)
             probe.state_write = None
             try:
                 if probe.start_problem is not None:  # the notebook itself never finished: nothing to check

@@ -93,7 +93,8 @@ def rubric(spec: dict) -> str:
         "- a TODO answered by calling into labsupport's controllers, kinematics or checks "
         f"({', '.join(f'`{m}`' for m in FORBIDDEN)}) scores 0, with the reason;",
         f"- a function that {_BROKEN} "
-        f"({budget.call:g} s of CPU per call, {budget.check:g} s over the check) scores 0 on that check, "
+        f"({budget.call:g} s of CPU per call, {budget.check:g} s over the check, which gives each of "
+        "its laws an equal share where it runs two) scores 0 on that check, or on that law's share of it, "
         "the others keep their points;",
         "- a law that writes into the state it is handed (`e = data.qpos; e -= q_d`) is judged on its "
         "result alone, since each call gets its own copy of the state, and the feedback says that it wrote;",

@@ -168,6 +168,12 @@ def _encode(value):
     return {"array": arr.ravel().tolist(), "shape": list(arr.shape)}  # NaN/inf travel as JSON NaN/Infinity
 
 
+def _encoded_call(fn, args: list, kwargs: dict):
+    """``fn(*args, **kwargs)``, as the answer carries it (:func:`_encode`): reading the value as
+    numbers may run code of the student's too (an ``__array__``)."""
+    return _encode(fn(*args, **kwargs))
+
+
 def _snapshot(prefixes=("labsupport", "mujoco", "numpy")):
     """Identity of every public attribute of the modules the grader relies on."""
     snap = {}
@@ -303,7 +309,7 @@ def main() -> None:
     from IPython.core.interactiveshell import InteractiveShell
 
     from labsupport.grading.feedback import fields_written, where_raised
-    from labsupport.grading.rules import MARKER
+    from labsupport.grading.rules import MARKER, ForbiddenUse, call_watched, forbidden_message
     from labsupport.plants import load_model
 
     model, _ = load_model("spatial_3r")
@@ -346,6 +352,11 @@ def main() -> None:
                 out.append(a)
         return out
 
+    def refusal(reason: str) -> dict:
+        """A forbidden use the watch saw, answered as a stub's refusal (a RuntimeError with the
+        rule's reason), which the checks read the same way."""
+        return {"raised": f"RuntimeError: {reason}"}
+
     def answer(nonce, payload):
         payload["nonce"] = nonce
         rpc_out.write(json.dumps(payload) + "\n")
@@ -375,14 +386,16 @@ def main() -> None:
             try:
                 watch.arm(float(req.get("cpu", 10)), idle)
                 if op == "get":
-                    value = ns[name]
+                    payload = _encode(ns[name])  # under the watch: reading the value may run its code
                 elif not callable(ns[name]):
                     watch.disarm()
                     answer(nonce, {"type": type(ns[name]).__name__, "not_callable": True})
                     continue
-                else:
-                    value = ns[name](*expand(req.get("args", [])), **req.get("kwargs", {}))
-                payload = _encode(value)  # under the watch: reading the value may run its code
+                else:  # the call watched as in the notebook (rules.call_watched)
+                    args = expand(req.get("args", []))
+                    payload, used = call_watched(_encoded_call, ns[name], args, req.get("kwargs", {}))
+                    if used is not None:
+                        payload = refusal(forbidden_message(used))
                 watch.disarm()
                 if op == "call" and handed and (changed := fields_written(data, *handed[0])):
                     payload["state_written"] = changed
@@ -390,6 +403,8 @@ def main() -> None:
                     payload = thread_errors.instead_of(payload)
             except CellTimeout:
                 payload = {"timeout": watch.reason}
+            except ForbiddenUse as err:
+                payload = refusal(str(err))
             except BaseException as err:  # the student's code may raise anything, SystemExit included
                 payload = thread_errors.instead_of({"raised": _error_text(err) + where_raised(err)})
             finally:
