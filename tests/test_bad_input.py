@@ -276,3 +276,16 @@ def test_a_sampled_reference_keeps_its_time_step_as_a_number():
     """A time step given as ``[0.5]`` passed the check and stayed a list in ``dt``."""
     ref = trajectories.SampledReference([0.5], np.arange(3.0), np.zeros(3), np.zeros(3))
     assert isinstance(ref.dt, float) and ref.at(1.0).pos == 2.0 and ref.index(0.6) == 1
+
+
+def test_a_check_whose_numpy_was_replaced_says_so_instead_of_drawing_forever(monkeypatch):
+    """A notebook cell that replaced ``np.linalg.norm`` made the in-notebook check draw test
+    configurations for ever (none kept the margins): it now stops and says what to do."""
+    import labsupport.grading as grading
+    from labsupport.grading import common
+
+    monkeypatch.setattr(np.linalg, "norm", lambda *args, **kwargs: 0.0)
+    with pytest.raises(RuntimeError, match="Restart the kernel"):
+        grading.check("p2_osct", {"ct_op_torque": lambda *args: np.zeros(3)})
+    with pytest.raises(RuntimeError, match=f"drew {common.DRAW_TRIES:,} configurations"):
+        common.draw_configuration(np.random.default_rng(0))

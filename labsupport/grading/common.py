@@ -130,6 +130,11 @@ def safe_point(x, margins: Margins = MARGINS) -> bool:
     )
 
 
+#: The most configurations :func:`draw_configuration` draws before it gives up (one is kept
+#: within a few draws: a thousand fail only where the functions it uses were replaced).
+DRAW_TRIES = 1000
+
+
 def draw_configuration(rng: np.random.Generator, elbow_up: bool = True, margins: Margins = MARGINS) -> np.ndarray:
     """A seeded joint configuration on the asked elbow branch whose tip keeps the margins.
 
@@ -137,7 +142,7 @@ def draw_configuration(rng: np.random.Generator, elbow_up: bool = True, margins:
     the Problem's IK formula gives for its own tip (whatever range a student wraps angles to).
     """
     model = arm_model()
-    while True:
+    for _ in range(DRAW_TRIES):
         theta = rng.uniform(0.25, np.pi - 0.25)  # elbow angle: q3 = theta - pi/2 (elbow up) or its mirror
         q3 = theta - np.pi / 2 if elbow_up else -theta - np.pi / 2
         q = np.array(
@@ -147,6 +152,11 @@ def draw_configuration(rng: np.random.Generator, elbow_up: bool = True, margins:
         forward = x[:2] @ np.array([np.cos(q[0]), np.sin(q[0])]) > 0  # tip in front: azimuth = q1
         if forward and safe_point(x, margins) and (elbow_height(model, q) > 0) == elbow_up:
             return q
+    raise RuntimeError(
+        f"the check drew {DRAW_TRIES:,} configurations and kept none: the NumPy or MuJoCo functions it "
+        "uses no longer give their usual results. Has a cell replaced one (np.linalg.norm = ..., say)? "
+        "Restart the kernel, run the cells again without that change, then run the check."
+    )
 
 
 def wrap_angle(angle):
