@@ -308,7 +308,7 @@ class DirectProbe(Probe):
         try:
             value, used = call_watched(call_and_read)
         except ForbiddenUse as err:
-            raise ForbiddenCall(str(err)) from None
+            raise ForbiddenCall(forbidden_use_text(err)) from None
         except StudentError:
             raise
         except Exception as err:  # the student's code may raise anything
@@ -408,6 +408,12 @@ def where_raised(err: BaseException) -> str:
             code = f": {' '.join(frame.line.split())}" if frame.line else ""  # one line, runs of spaces as one
             return f" (line {frame.lineno} of {frame.name}{code})"
     return ""
+
+
+def forbidden_use_text(err: ForbiddenUse) -> str:
+    """The reason of a forbidden use, with the student's line it passed through where the call
+    raised after it (a stub's refusal in the sandbox, or the borrowed law's own error)."""
+    return str(err) + ("" if err.__context__ is None else where_raised(err.__context__))
 
 
 def _plain(value, what: str):

@@ -308,7 +308,7 @@ def main() -> None:
     import numpy as np
     from IPython.core.interactiveshell import InteractiveShell
 
-    from labsupport.grading.feedback import fields_written, where_raised
+    from labsupport.grading.feedback import fields_written, forbidden_use_text, where_raised
     from labsupport.grading.rules import MARKER, ForbiddenUse, call_watched, forbidden_message
     from labsupport.plants import load_model
 
@@ -404,7 +404,7 @@ def main() -> None:
             except CellTimeout:
                 payload = {"timeout": watch.reason}
             except ForbiddenUse as err:
-                payload = refusal(str(err))
+                payload = refusal(forbidden_use_text(err))
             except BaseException as err:  # the student's code may raise anything, SystemExit included
                 payload = thread_errors.instead_of({"raised": _error_text(err) + where_raised(err)})
             finally:
