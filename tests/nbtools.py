@@ -11,7 +11,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import nbformat
-import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 INSTALL_CELL_TAGS = ["hide-input", "remove-output"]
@@ -19,6 +18,8 @@ INSTALL_CELL_TAGS = ["hide-input", "remove-output"]
 
 def _repository() -> dict:
     """The ``repository`` section of ``_config.yml``, where the URL and branch are set once."""
+    import yaml  # the book's tools have it; the tests of the oldest versions, which import this module, need not
+
     return yaml.safe_load((ROOT / "_config.yml").read_text(encoding="utf-8"))["repository"]
 
 
