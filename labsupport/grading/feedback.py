@@ -241,14 +241,17 @@ class DirectProbe(Probe):
     namespace: dict
     _model: Any = field(default=None, repr=False)
     _data: Any = field(default=None, repr=False)
-    #: CPU time the student's functions took in this probe's calls [s].
-    cpu_seconds: float = 0.0
-    #: The part of the check that came nearest its share of the CPU budget: ``(label, seconds, share)``.
-    busiest: tuple[str, float, float] = ("your functions", 0.0, 1.0)
-    _part: list = field(default_factory=lambda: ["your functions", 0.0, 1.0], repr=False)
+    #: The parts of the check so far, each ``[label, CPU time of the student's calls in it [s],
+    #: its share of the budget]``: a check begins as one part, its whole (:meth:`begin_part`).
+    parts: list = field(default_factory=lambda: [["your functions", 0.0, 1.0]], repr=False)
 
     def begin_part(self, label: str, share: float) -> None:
-        self._part = [label, 0.0, share]
+        self.parts.append([label, 0.0, share])
+
+    @property
+    def busiest(self) -> tuple[str, float, float]:
+        """The part that came nearest its share of the CPU budget: ``(label, seconds, share)``."""
+        return tuple(max(self.parts, key=lambda part: part[1] / part[2]))
 
     def _model_data(self, state: State):
         """The 3R arm's model and the probe's one ``MjData``, reset and set to ``state`` (then
@@ -316,11 +319,7 @@ class DirectProbe(Probe):
                 raised_text(fname, f"{type(err).__name__}: {str(err).rstrip()}") + where_raised(err)
             ) from None
         finally:
-            spent = time.process_time() - start
-            self.cpu_seconds += spent
-            self._part[1] += spent
-            if self._part[1] / self._part[2] > self.busiest[1] / self.busiest[2]:
-                self.busiest = tuple(self._part)
+            self.parts[-1][1] += time.process_time() - start
         if used is not None:
             raise ForbiddenCall(forbidden_message(used))
         for state, data in handed:
