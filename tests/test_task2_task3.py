@@ -177,6 +177,25 @@ def test_task3_1_target_and_final_errors():
     assert final["CT"] < 1e-6  # CT has converged (e^{-27} of 1 m)
 
 
+def test_task3_1_pd_is_the_stiffer_law_but_far_less_damped():
+    """The page's reading of the lab's "PD needs higher Kp": in N·m/rad, CT's Kp = 100 1/s² is
+    M_ii·Kp at the goal, below PD's 40 in both joints; PD's Kd = 1 is far below the 2·0.9·√(40 M_ii)
+    that would damp it as CT is, and the linearised joints ring with the damping ratios it gives."""
+    model, data = load_model("planar_2r")
+    target, q_d, runs = reaching_runs()
+    data.qpos[:] = q_d
+    mujoco.mj_forward(model, data)
+    M = np.diag(mass_matrix(model, data))
+    np.testing.assert_allclose(M * gains.ct_gains(10.0, 0.9)[0], [35.342, 4.267], atol=1e-3)
+    assert np.all(M * 100.0 < 40.0)
+    np.testing.assert_allclose(2 * 0.9 * np.sqrt(40.0 * M), [6.767, 2.351], atol=1e-3)
+    zeta = 1.0 / (2 * np.sqrt(40.0 * M))
+    np.testing.assert_allclose(zeta, [0.133, 0.383], atol=1e-3)
+    # the ringing it predicts: PD's joint 2 error still swings through zero late in the run
+    late = runs["PD"].t > 2.0
+    assert np.any(np.diff(np.sign(q_d[1] - runs["PD"].q[late, 1])) != 0)
+
+
 @pytest.mark.parametrize("wn, zeta", [(10.0, 0.9), (6.0, 1.0), (8.0, 1.5)])
 def test_ct_setpoint_response_is_the_analytic_second_order_one(wn, zeta):
     """e = q_d - q obeys e'' + 2 zeta wn e' + wn^2 e = 0 in both joints; the zero-order hold
