@@ -310,6 +310,8 @@ def saturation_report(log, applied, names=None) -> str:
     hits = saturation(log, applied)
     if not hits.any():
         return ""
+    if isinstance(names, (str, bytes)):  # "ab" would name two actuators "a" and "b"
+        raise ValueError(f"names must be a list of names, one per actuator, got the text {names!r}")
     names = [str(i) for i in range(hits.shape[1])] if names is None else [str(name) for name in names]
     if len(names) != hits.shape[1]:
         raise ValueError(f"names must name each of the {hits.shape[1]} actuators, got {len(names)} names")

@@ -529,8 +529,15 @@ def _as_torque(tau, nu: int) -> np.ndarray:
     if tau is None:
         raise ValueError(f"the controller returned None; it must return a torque of shape ({nu},)")
     validate.real("the controller returned", tau)
-    if isinstance(tau, (str, bytes)):  # NumPy would read "1" as 1 N·m
-        raise ValueError(f"the controller returned the text {tau!r}; it must return a torque of shape ({nu},)")
+    if validate.is_text(tau):  # NumPy would read "1" as 1 N·m
+        raise ValueError(
+            f"the controller returned the text {validate.short(tau)}; it must return a torque of shape ({nu},)"
+        )
+    if validate.is_boolean(tau):  # NumPy would read True as 1 N·m
+        raise ValueError(
+            f"the controller returned {validate.short(tau)}, not torques: {validate.BOOLEAN_NOTE}; it must "
+            f"return a torque of shape ({nu},)"
+        )
     values = validate.floats(tau)
     if values is None:
         raise ValueError(

@@ -173,10 +173,36 @@ REFERENCE = (
 )
 
 
+def is_text(value) -> bool:
+    """Whether ``value`` is text, a list or tuple holding text, or a NumPy array of text (NumPy
+    would read "5" as 5.0)."""
+    if isinstance(value, (str, bytes)):
+        return True
+    if isinstance(value, (list, tuple)):
+        return any(isinstance(v, (str, bytes)) for v in value)
+    return isinstance(value, np.ndarray) and value.dtype.kind in "SU"
+
+
+def is_boolean(value) -> bool:
+    """Whether ``value`` is ``True``/``False`` or an array of them (NumPy would read them as 1.0
+    and 0.0): what a comparison such as ``q > 0`` gives."""
+    if isinstance(value, (bool, np.bool_)):
+        return True
+    if isinstance(value, (list, tuple)):
+        return len(value) > 0 and all(isinstance(v, (bool, np.bool_)) for v in value)
+    return isinstance(value, np.ndarray) and value.dtype.kind == "b"
+
+
+#: Why a boolean is not a number, for the messages that refuse one.
+BOOLEAN_NOTE = "True and False are not numbers here (a comparison such as q > 0 gives them)"
+
+
 def not_text(name: str, value) -> None:
-    """``ValueError`` for text where numbers belong (NumPy would read "5" as 5.0)."""
-    if isinstance(value, (str, bytes)) or (isinstance(value, (list, tuple)) and any(isinstance(v, str) for v in value)):
+    """``ValueError`` for text, or for ``True``/``False`` values, where numbers belong."""
+    if is_text(value):
         raise ValueError(f"{name} must be numbers, not text: got {short(value)}")
+    if is_boolean(value):
+        raise ValueError(f"{name} must be numbers, got {short(value)}: {BOOLEAN_NOTE}")
 
 
 #: The arrays of a run's log (``labsupport.sim.Log``), which functions of a log read.

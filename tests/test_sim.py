@@ -71,6 +71,8 @@ def test_torque_limit_clips(arm):
         ("abc", "torque_limit must be numbers, not text: got 'abc'"),
         ("10", "torque_limit must be numbers, not text"),  # NumPy would read it as 10.0
         ([1.0, "2"], "torque_limit (a number, or one per actuator: nu = 2) must be numbers, not text"),
+        (np.array(["1", "2"]), "torque_limit (a number, or one per actuator: nu = 2) must be numbers, not text"),
+        ([True, True], "must be numbers, got [True, True]: True and False are not numbers here"),
         ({"a": 1}, "torque_limit must be a single real number"),
         ([3.0, -4.0], "torque_limit must be positive"),
         (0.0, "torque_limit must be positive"),  # a motor that gives no torque at all
@@ -687,6 +689,13 @@ def test_a_controller_failing_or_returning_text_is_named_with_the_time(arm):
         ValueError, match=r"the controller returned the text '1'; it must return a torque of shape \(1,\)"
     ):
         sim.simulate(one, one_data, lambda m, d: "1", 0.1)
+    # an array of text, or of booleans, used to act as torques of 1 and 0 N·m
+    with pytest.raises(ValueError, match=r"the controller returned the text \['1' '2'\]; it must return a torque"):
+        sim.simulate(model, data, lambda m, d: np.array(["1", "2"]), 0.1)
+    with pytest.raises(ValueError, match=r"returned \[ True  True\], not torques: True and False are not numbers"):
+        sim.simulate(model, data, lambda m, d: d.qpos > -1.0, 0.1)
+    with pytest.raises(ValueError, match=r"returned \[True, False\], not torques: .*a comparison such as q > 0"):
+        sim.simulate(model, data, lambda m, d: [True, False], 0.1)
 
 
 @pytest.mark.parametrize(

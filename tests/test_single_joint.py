@@ -519,6 +519,8 @@ def test_the_saturation_measures_check_what_they_are_given():
     assert "joints shoulder, elbow" in metrics.saturation_report(log, applied, names=["shoulder", "elbow"])
     with pytest.raises(ValueError, match="names must name each of the 2 actuators, got 1"):
         metrics.saturation_report(log, applied, names=["shoulder"])
+    with pytest.raises(ValueError, match="names must be a list of names, one per actuator, got the text 'ab'"):
+        metrics.saturation_report(log, applied, names="ab")  # two letters, two actuators: it used to pass
     with pytest.raises(ValueError, match="applied must hold one exerted torque per step and actuator"):
         metrics.peak_torque(log, applied[:, :1])
 
