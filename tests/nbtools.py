@@ -106,16 +106,18 @@ if __name__ == "__main__":
 COLAB_SITE_PACKAGES = "/usr/local/lib/python3.11/dist-packages"
 
 
-def carried_code(fn, site_packages: str = COLAB_SITE_PACKAGES) -> str:
+def carried_code(fn, site_packages: str = COLAB_SITE_PACKAGES, filename: str | None = None) -> str:
     """``fn``'s code as a student may carry it from their own installation into a notebook:
     marshalled and base64-encoded, every code object in it naming the file that installation
-    holds (``site_packages/labsupport/...``). It loads only on this Python version, so tests
-    make it when they run rather than commit it."""
+    holds (``site_packages/labsupport/...``), or ``filename`` when given (a made-up one, such as
+    ``"<lab notes>"``). It loads only on this Python version, so tests make it when they run
+    rather than commit it."""
     import base64
     import marshal
 
     package = Path(__import__("labsupport").__file__).resolve().parent
-    filename = f"{site_packages}/labsupport/{Path(fn.__code__.co_filename).resolve().relative_to(package)}"
+    if filename is None:
+        filename = f"{site_packages}/labsupport/{Path(fn.__code__.co_filename).resolve().relative_to(package)}"
 
     def moved(code):
         consts = tuple(moved(c) if hasattr(c, "co_filename") else c for c in code.co_consts)

@@ -6,8 +6,10 @@ import ast
 import importlib
 import importlib.util
 import inspect
+import os
 import pkgutil
 import re
+import subprocess
 import sys
 import threading
 import time
@@ -1315,6 +1317,73 @@ def test_a_law_carried_as_compiled_code_from_another_installation_is_named():
 
     result = grade("p1_ct", ct_joint_torque=carried)
     assert result.score == 0 and "labsupport.controllers.joint_space.ct_joint_torque is off limits" in result.message
+
+
+def test_a_law_carried_under_a_made_up_file_name_is_known_by_its_compiled_code():
+    """The same law carried with its file renamed ("<lab notes>"): neither its module nor its
+    file is labsupport's; its bytecode, names and constants are, and the watch knows it by them."""
+    import base64
+    import marshal
+
+    code = marshal.loads(base64.b64decode(carried_code(joint_space_alias.ct_joint_torque, filename="<lab notes>")))
+    law = types.FunctionType(code, vars(labsupport.dynamics), "my_own_ct")
+
+    def carried(model, data, q_d, Kp, Kd):
+        return law(model, data, q_d, np.zeros(3), np.zeros(3), Kp, Kd)
+
+    result = grade("p1_ct", ct_joint_torque=carried)
+    assert result.score == 0 and "labsupport.controllers.joint_space.ct_joint_torque is off limits" in result.message
+
+
+def test_a_law_pasted_into_a_cell_is_the_notebooks_own_code():
+    """Its compiled code is the library law's, but its text is in the cell its code names (as
+    IPython keeps it): graded as the notebook's own code, full marks for a right law. The same
+    text run from a string with exec is not where its code says, and scores zero."""
+    from IPython.core.interactiveshell import InteractiveShell
+
+    shell = InteractiveShell.instance()
+    pasted = inspect.getsource(joint_space_alias.ct_joint_torque).replace("def ct_joint_torque(", "def task3_ct(")
+    shell.run_cell("import numpy as np\nfrom labsupport.dynamics import mass_times\n\n\n" + pasted, store_history=False)
+    task3_ct = shell.user_ns["task3_ct"]
+    assert rules.code_fingerprint(task3_ct.__code__) in rules.forbidden_code()
+
+    def pasted_ct(model, data, q_d, Kp, Kd):
+        return task3_ct(model, data, q_d, np.zeros(3), np.zeros(3), Kp, Kd)
+
+    result = grade("p1_ct", ct_joint_torque=pasted_ct)
+    assert result.score == 1.0, result.message
+    namespace = dict(vars(labsupport.dynamics))
+    exec(compile(pasted, "<string>", "exec"), namespace)  # the text in a string, not in a cell
+    from_string = namespace["task3_ct"]
+
+    def exec_ct(model, data, q_d, Kp, Kd):
+        return from_string(model, data, q_d, np.zeros(3), np.zeros(3), Kp, Kd)
+
+    result = grade("p1_ct", ct_joint_torque=exec_ct)
+    assert result.score == 0 and "labsupport.controllers.joint_space.ct_joint_torque is off limits" in result.message
+
+
+def test_a_fingerprint_is_what_the_code_does_not_what_it_is_called():
+    """Name, file and line numbers do not change it; a changed constant, name or instruction does;
+    a frozenset constant gives the same fingerprint whatever the process's string hashing."""
+    source = 'def law(q, k):\n    """A law."""\n    return k * (q - 1.0) if q in {"a", "b"} else k\n'
+    renamed = "\n\n" + source.replace("def law(", "def mine(")
+    for other in (renamed, source.replace("1.0", "2.0"), source.replace("k * (q", "k * (-q")):
+        a, b = rules.fingerprints_of_module(source, "m"), rules.fingerprints_of_module(other, "n")
+        assert (set(a) == set(b)) == (other is renamed), other
+    assert rules.fingerprints_of_module("def f(q):\n    return q + 1\n", "m") == {}  # undocumented: never a match
+    script = f"from labsupport.grading import rules; print(*rules.fingerprints_of_module({source!r}, 'm'))"
+    hashed = [
+        subprocess.run(
+            [sys.executable, "-c", script],
+            env={**os.environ, "PYTHONHASHSEED": seed},
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout
+        for seed in ("1", "2")
+    ]
+    assert hashed[0] == hashed[1] == " ".join(rules.fingerprints_of_module(source, "m")) + "\n"
 
 
 @pytest.mark.parametrize(

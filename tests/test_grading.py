@@ -148,6 +148,19 @@ EXPECTED = {
             "runs code built while the notebook runs",
         ],
     ),
+    "pickles_library_code.ipynb": (  # Task 3's PD compiled under a made-up file name, carried in a pickle
+        {"p1_ik": 3, "p1_ct": 3, "p1_reach": 2},
+        "graded",
+        [
+            "p1_pd: PD: labsupport.controllers.joint_space.pd_joint_torque is off limits in a Problem TODO",
+            "runs code built while the notebook runs",
+        ],
+    ),
+    "pastes_law_source.ipynb": (  # Task 3's CT pasted as text into a cell: the notebook's own code
+        {"p1_ik": 3, "p1_pd": 2, "p1_ct": 3, "p1_reach": 2},
+        "graded",
+        ["all checks passed"],
+    ),
     "copies_law_source.ipynb": (  # the law's source copied with inspect and run with exec: no import to see
         {"p1_ik": 3, "p1_pd": 2},
         "graded",
@@ -219,8 +232,77 @@ def carries_compiled_law() -> str:
     return nbformat.writes(replace_function(load(MASTER), "ct_joint_torque", source))
 
 
+class _Marshalled:
+    """A code object that unpickles itself with ``marshal.loads``: in the pickle, no class of
+    the test's, only that call."""
+
+    def __init__(self, code):
+        import marshal
+
+        self.data = marshal.dumps(code)
+
+    def __reduce__(self):
+        import marshal
+
+        return (marshal.loads, (self.data,))
+
+
+def pickles_library_code() -> str:
+    """The master with TODO 2 answered by Task 3's joint PD: its module compiled from the
+    package's own source under a made-up file name (``"<lab notes>"``), pickled as ``exec`` of
+    that code, and unpickled and run in the notebook. Nothing forbidden is imported, no file or
+    module name is labsupport's, and the pickle holds no readable text: the watch knows the law
+    by its compiled code (``rules.carried_forbidden_code``), and the row's note names the cell
+    that unpickles. Made when the test runs: the code loads only on the Python that made it."""
+    import base64
+    import functools
+    import pickle
+
+    from labsupport.controllers import joint_space
+
+    module = compile(Path(joint_space.__file__).read_text(encoding="utf-8"), "<lab notes>", "exec", dont_inherit=True)
+    blob = base64.b64encode(pickle.dumps(functools.partial(exec, _Marshalled(module)))).decode()
+    nb = load(MASTER)
+    nb = insert_after(
+        nb,
+        _imports(nb),
+        "import base64, pickle\n"
+        "# my notes from last year, saved on my laptop\n"
+        '_notes = {"__name__": "lab_notes"}\n'
+        f"pickle.loads(base64.b64decode({blob!r}))(_notes)",
+    )
+    source = (
+        "def pd_torque(model, data, q_d, Kp, Kd):\n"
+        '    return _notes["pd_joint_torque"](model, data, q_d, np.zeros(3), Kp, Kd)'
+    )
+    return nbformat.writes(replace_function(nb, "pd_torque", source))
+
+
+def pastes_law_source() -> str:
+    """The master with TODO 3 answered by Task 3's joint computed torque, its text pasted into
+    a cell from the Task 3 page (renamed): the notebook's own code, as the README's policy has
+    it, so full marks. Its compiled code is the library law's; the watch compiles the cell's text
+    that the code names, finds it there, and lets it be. Made from the installed source."""
+    import inspect
+
+    from labsupport.controllers import joint_space
+
+    pasted = inspect.getsource(joint_space.ct_joint_torque).replace("def ct_joint_torque(", "def task3_ct(")
+    nb = load(MASTER)
+    nb = insert_after(nb, _imports(nb), "from labsupport.dynamics import mass_times\n\n\n" + pasted)
+    source = (
+        "def ct_joint_torque(model, data, q_d, Kp, Kd):\n"
+        "    return task3_ct(model, data, q_d, np.zeros(3), np.zeros(3), Kp, Kd)"
+    )
+    return nbformat.writes(replace_function(nb, "ct_joint_torque", source))
+
+
 #: Submissions made when the tests run, not committed under tests/hostile: ``{file: maker}``.
-MADE_HERE = {"carries_compiled_law.ipynb": carries_compiled_law}
+MADE_HERE = {
+    "carries_compiled_law.ipynb": carries_compiled_law,
+    "pickles_library_code.ipynb": pickles_library_code,
+    "pastes_law_source.ipynb": pastes_law_source,
+}
 
 
 def _tree_hash(*folders: Path) -> str:
@@ -401,6 +483,8 @@ def test_code_built_at_run_time_is_named_and_code_as_written_is_not():
         (10, "law = F(_x(blob), globals())"),  # names imported in an earlier cell, aliased
         (11, "code = t.CodeType(*fields)"),
         (12, "from json import loads\nloads(text)\nimport pickle as marshal_\nmarshal_.loads(b)"),
+        (13, "import json as pickle\npickle.loads(text)"),  # named pickle, but JSON: data, never code
+        (14, "from dill import load\nlaw = load(f)"),
     ]
     assert judge.code_built_at_run_time(cells) == [
         "cell 3 ('import base64, zlib')",
@@ -409,6 +493,8 @@ def test_code_built_at_run_time_is_named_and_code_as_written_is_not():
         "cell 7 ('import marshal')",
         "cell 11 ('law = F(_x(blob), globals())')",
         "cell 12 ('code = t.CodeType(*fields)')",
+        "cell 13 ('from json import loads')",  # pickle.loads: an unpickled object may be a law
+        "cell 15 ('from dill import load')",
     ]
 
 
@@ -756,6 +842,22 @@ def test_the_batch_commands_defaults_and_the_least_it_accepts(tmp_path, monkeypa
     assert asked == []
 
 
+def test_a_seed_a_student_could_guess_is_warned_about(tmp_path, monkeypatch, capsys):
+    """A notebook can store its answers for each small seed (the red team's held nine, 42 among
+    them, and scored full marks with no law at all): --seed below 2**32 warns that it is for
+    reproducing a batch; a drawn 48-bit seed, or none, does not."""
+    from labsupport.instructor import batch
+
+    subs = _submissions(tmp_path / "subs", ["master.ipynb"])
+    monkeypatch.setattr(batch, "run_batch", lambda *args, **kwargs: None)
+    for seed, warned in (("42", True), ("20261129", True), (str(2**32), False), (str(batch.new_seed() | 2**40), False)):
+        batch_main(["--problem", "problem1", str(subs), "--out", str(tmp_path / "out"), "--seed", seed])
+        err = capsys.readouterr().err
+        assert (f"warning: --seed {seed} is a seed a notebook could have stored its answers for" in err) == warned, err
+    batch_main(["--problem", "problem1", str(subs), "--out", str(tmp_path / "out")])
+    assert "warning" not in capsys.readouterr().err
+
+
 def test_unsafe_opt_out_says_so_in_every_row(tmp_path):
     subs = _submissions(tmp_path / "subs", ["master.ipynb", "invalid_json.ipynb"])
     proc = _batch_cli("problem1", subs, tmp_path / "out", "--unsafe-no-sandbox", "--seed", str(SEED))
@@ -915,6 +1017,28 @@ def test_a_forbidden_packages_stub_names_exactly_its_own_modules(tmp_path):
         ]
         real = (ROOT / "labsupport" / package).glob("*.py")
         assert listed == tuple(sorted(p.stem for p in real if p.name != "__init__.py")), (package, listed)
+
+
+def test_the_sandboxs_package_carries_the_forbidden_functions_fingerprints(tmp_path):
+    """Its forbidden modules are stubs, so the grader writes the real ones' fingerprints beside
+    the rules; they are those of this checkout's laws, and a stub's own functions are not among
+    them."""
+    import json
+
+    from labsupport.grading import rules
+
+    isolation.write_student_package(tmp_path / "student")
+    shipped = json.loads((tmp_path / "student" / "labsupport" / "grading" / rules.FORBIDDEN_CODE_FILE).read_text())
+    assert shipped == rules.forbidden_code_of_package(ROOT / "labsupport")
+    names = set(shipped.values())
+    assert {
+        "labsupport.controllers.joint_space.ct_joint_torque",
+        "labsupport.kinematics.planar_2r.inverse_kinematics",
+        "labsupport.grading.common.tip",
+    } <= names
+    assert not any(name.startswith(("labsupport.dynamics.", "labsupport.grading.rules.")) for name in names)
+    stub = (tmp_path / "student" / "labsupport" / "controllers" / "joint_space.py").read_text()
+    assert not set(rules.fingerprints_of_module(stub, "labsupport.controllers.joint_space")) & set(shipped)
 
 
 def test_the_installed_labsupport_is_masked_in_the_sandbox_whichever_way_it_was_installed(tmp_path, monkeypatch):

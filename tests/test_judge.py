@@ -102,7 +102,7 @@ def test_each_check_scores_its_share_of_its_points_and_the_notes_say_what_the_no
     }
     assert row["notes"] == [
         "cell 6 (\"exec('last = ' + '1')\") runs code built while the notebook runs (exec, eval or compile of "
-        "a string it makes, or a code object it loads or builds), which is not in the notebook's text: the "
+        "a string it makes, or code it unpickles, loads or builds), which is not in the notebook's text: the "
         "instructor reads it by hand",
         'cell 4 ("raise ValueError(\'on purpose\')") raised ValueError: "on purpose"',
         "the notebook replaced numpy.allclose (no effect on grading: the checks run in a separate process)",

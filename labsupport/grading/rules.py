@@ -10,10 +10,11 @@ Two places enforce it:
 
 * the in-notebook check calls the student's function under :func:`call_watched`, which notes
   every Python function the call runs, in its own thread and in threads it starts, and flags
-  one defined in a :data:`FORBIDDEN` module, by module name or by source file
+  one defined in a :data:`FORBIDDEN` module, by module name, by source file
   (:func:`forbidden_module_of_file`: so a function imported under another name, loaded from
   its file as another module, or rebuilt from its code object, even one marshalled on another
-  installation, is still caught);
+  installation, is still caught), or by its compiled code (:func:`carried_forbidden_code`: the
+  same law compiled under a made-up file name and carried in a pickle);
 * the batch grader's sandbox replaces the :data:`FORBIDDEN` modules by stubs whose functions
   raise ``RuntimeError(forbidden_message(name))``, and calls the student's function under the
   same watch; the checks recognise that message (:func:`is_forbidden_message`) and give the
@@ -29,11 +30,16 @@ zero with the same reason: the source ``inspect`` finds there is the stub's, whi
 
 from __future__ import annotations
 
+import hashlib
+import json
+import linecache
 import os
 import sys
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from functools import cache
+from pathlib import Path
+from types import CodeType
 
 #: Module prefixes a Problem TODO may not call into: the Tasks' control laws, the arms'
 #: kinematics, and the checks' own internals (they evaluate the Problems' formulas).
@@ -105,13 +111,16 @@ def is_forbidden_module(module: str) -> bool:
     return any(module == p or module.startswith(p + ".") for p in FORBIDDEN)
 
 
-def _forbidden_module_of(frame) -> str | None:
-    """The :data:`FORBIDDEN` module the function running in ``frame`` comes from, by its
-    globals' ``__name__`` or its code's source file, else ``None``."""
+def _forbidden_use_of(frame) -> str | None:
+    """The qualified name of the :data:`FORBIDDEN` function running in ``frame``, recognised by
+    its globals' ``__name__``, by its code's source file, or by its compiled code itself
+    (:func:`carried_forbidden_code`), else ``None``."""
     module = frame.f_globals.get("__name__", "")
-    if module.startswith("labsupport.") and is_forbidden_module(module):
-        return module
-    return forbidden_module_of_file(frame.f_code.co_filename)
+    if not (module.startswith("labsupport.") and is_forbidden_module(module)):
+        module = forbidden_module_of_file(frame.f_code.co_filename)
+    if module is not None:
+        return f"{module}.{_called_name(frame)}"
+    return carried_forbidden_code(frame.f_code)
 
 
 @cache
@@ -131,6 +140,121 @@ def forbidden_module_of_file(filename: str) -> str | None:
         return None
     module = stem.replace("/", ".").removesuffix(".__init__")
     return module if is_forbidden_module(module) else None
+
+
+#: The file, beside this module in the batch grader's sandbox, that holds the fingerprints of
+#: the :data:`FORBIDDEN` modules' functions (the sandbox's copies of those modules are stubs, so
+#: the grader computes them from the real ones: :func:`write_forbidden_code`).
+FORBIDDEN_CODE_FILE = "forbidden_code.json"
+
+
+def code_fingerprint(code: CodeType) -> str:
+    """A digest of what ``code`` does: its bytecode, the names it reads and its constants (a
+    nested function's code by its own fingerprint), but not its name, its file or its line
+    numbers, which a copy can change at will. Bytecode is that of the running Python, as is a
+    code object a notebook can load (``marshal`` refuses another version's)."""
+    digest = hashlib.sha256(code.co_code)
+    digest.update(repr(code.co_names).encode())
+    for constant in code.co_consts:
+        digest.update(b"\0" + _constant_key(constant).encode())
+    return digest.hexdigest()[:32]
+
+
+def _constant_key(constant) -> str:
+    """A constant as :func:`code_fingerprint` reads it: the same in every process (a frozenset's
+    order follows the process's string hashing, so its members are sorted)."""
+    if isinstance(constant, CodeType):
+        return "code " + code_fingerprint(constant)
+    if isinstance(constant, frozenset):
+        return "frozenset " + repr(sorted(_constant_key(c) for c in constant))
+    if isinstance(constant, tuple):
+        return "tuple " + repr([_constant_key(c) for c in constant])
+    return repr(constant)
+
+
+def _codes_within(code: CodeType) -> Iterator[CodeType]:
+    """``code`` and every code object compiled within it (functions, methods, lambdas)."""
+    yield code
+    for constant in code.co_consts:
+        if isinstance(constant, CodeType):
+            yield from _codes_within(constant)
+
+
+def fingerprints_of_module(source: str, module: str) -> dict[str, str]:
+    """``{fingerprint: qualified name}`` of the functions that the module ``module``'s
+    ``source`` defines and documents. A function without a docstring, a lambda or a
+    comprehension may be the same few instructions as a student's own, so only documented
+    functions are recognised: the docstring makes the match a copy."""
+    found = {}
+    for code in _codes_within(compile(source, module, "exec", dont_inherit=True)):
+        documented = bool(code.co_consts) and isinstance(code.co_consts[0], str)
+        if not code.co_name.startswith("<") and documented:
+            qualname = getattr(code, "co_qualname", code.co_name)  # Python 3.10 has no co_qualname
+            found[code_fingerprint(code)] = f"{module}.{qualname}"
+    return found
+
+
+def forbidden_code_of_package(package: Path) -> dict[str, str]:
+    """The fingerprints of the :data:`FORBIDDEN` modules' functions, from the sources under
+    ``package`` (the folder of ``labsupport``)."""
+    found = {}
+    for path in sorted(Path(package).rglob("*.py")):
+        module = ".".join(("labsupport", *path.relative_to(package).with_suffix("").parts)).removesuffix(".__init__")
+        if is_forbidden_module(module):
+            found.update(fingerprints_of_module(path.read_text(encoding="utf-8"), module))
+    return found
+
+
+def write_forbidden_code(package: Path, dest: Path) -> None:
+    """Write the fingerprints of the real ``package``'s forbidden functions to ``dest`` (a
+    :data:`FORBIDDEN_CODE_FILE`), for a copy of the package whose forbidden modules are stubs."""
+    Path(dest).write_text(json.dumps(forbidden_code_of_package(package), sort_keys=True), encoding="utf-8")
+
+
+@cache
+def forbidden_code() -> dict[str, str]:
+    """The fingerprints of the :data:`FORBIDDEN` functions: the :data:`FORBIDDEN_CODE_FILE` beside
+    this module where the grader wrote one, else computed from this installation's sources."""
+    here = Path(__file__).resolve().parent
+    shipped = here / FORBIDDEN_CODE_FILE
+    if shipped.is_file():
+        return json.loads(shipped.read_text(encoding="utf-8"))
+    return forbidden_code_of_package(here.parent)
+
+
+#: What :func:`carried_forbidden_code` found for each code object it was asked about, by ``id``
+#: (the code object is kept, so its ``id`` is not reused).
+_CARRIED: dict[int, tuple[CodeType, str | None]] = {}
+
+
+def carried_forbidden_code(code: CodeType) -> str | None:
+    """The qualified name of the :data:`FORBIDDEN` function that ``code`` is a compiled copy of,
+    whatever name and file the copy claims, unless its text is written where it says it was
+    (:func:`_written_where_it_says`); else ``None``. This catches a law carried into the
+    notebook compiled (pickled, marshalled, rebuilt from bytes) under a made-up file name, which
+    neither the module rule nor the file rule sees; a law whose text is pasted into a cell is the
+    notebook's own code, graded as such. Cached per code object: the watch asks for every call."""
+    seen = _CARRIED.get(id(code))
+    if seen is None or seen[0] is not code:
+        name = forbidden_code().get(code_fingerprint(code))
+        if name is not None and _written_where_it_says(code):
+            name = None
+        seen = _CARRIED[id(code)] = (code, name)
+    return seen[1]
+
+
+def _written_where_it_says(code: CodeType) -> bool:
+    """Whether the text of the file ``code`` names (for a notebook cell, the cell's text, which
+    IPython keeps in ``linecache``) compiles to code with the same fingerprint."""
+    lines = linecache.getlines(code.co_filename)
+    if not lines:
+        return False
+    try:
+        compiled = compile("".join(lines), code.co_filename, "exec", dont_inherit=True)
+    except (SyntaxError, ValueError, RecursionError, MemoryError):
+        return False
+    fingerprint = code_fingerprint(code)
+    return any(code_fingerprint(c) == fingerprint for c in _codes_within(compiled))
 
 
 def _called_name(frame) -> str:
@@ -171,9 +295,9 @@ def call_watched(fn: Callable, *args, **kwargs):
         # __getattr__ (PEP 562), which an import asks for names such as __path__: the call
         # into it that follows is, and is named by the function called
         if event == "call" and not used and _called_name(frame) not in ("<module>", "__getattr__"):
-            module = _forbidden_module_of(frame)
-            if module is not None:
-                used.append(f"{module}.{_called_name(frame)}")
+            name = _forbidden_use_of(frame)
+            if name is not None:
+                used.append(name)
         if previous is not None:
             previous(frame, event, arg)
 

@@ -94,6 +94,23 @@ def new_seed() -> int:
     return secrets.randbits(48)
 
 
+#: Seeds below this one can be guessed: a notebook can store its answers for each of them (for
+#: every seed up to a few thousand they fit in one notebook), as it cannot for a fresh 48-bit one.
+GUESSABLE_SEEDS = 2**32
+
+
+def guessable_seed_warning(seed: int | None) -> str:
+    """The warning for a ``--seed`` a student could guess, or ``""``: such a seed is for
+    reproducing a batch graded with it, never for grading new work."""
+    if seed is None or seed >= GUESSABLE_SEEDS:
+        return ""
+    return (
+        f"warning: --seed {seed} is a seed a notebook could have stored its answers for (a small number, "
+        "a date): use --seed only to reproduce a batch graded with it. To grade new submissions, leave "
+        "--seed out: each batch then draws a fresh secret seed (batch.json records it)"
+    )
+
+
 def is_notebook(path: Path) -> bool:
     """Whether ``path`` is a file named as a notebook: ``.ipynb`` in any case (``.IPYNB`` too); a
     folder so named is not one (it is left aside as a folder)."""
@@ -515,6 +532,8 @@ def main(argv=None) -> None:
         parser.error(f"--timeout must be a positive number of seconds, got {args.timeout}")
     check_submissions_folder(parser, args.submissions)
     check_compare_with(parser, args.compare_with, args.submissions)
+    if warning := guessable_seed_warning(args.seed):
+        print(warning, file=sys.stderr)
     try:
         run_batch(
             args.submissions,

@@ -535,6 +535,17 @@ _RUNS_DATA = frozenset(
         "builtins.eval",
         "builtins.compile",
         "marshal.loads",
+        "marshal.load",
+        "pickle.loads",
+        "pickle.load",
+        "pickle.Unpickler",
+        "_pickle.loads",
+        "_pickle.load",
+        "dill.loads",
+        "dill.load",
+        "cloudpickle.loads",
+        "cloudpickle.load",
+        "joblib.load",
         "types.CodeType",
         "types.FunctionType",
     }
@@ -559,11 +570,13 @@ def _imported_names(tree: ast.AST) -> dict[str, str]:
 def code_built_at_run_time(cells: list[tuple[int, str]]) -> list[str]:
     """The cells (as :func:`_cell_named` names them) that run code they build while they run:
     ``exec``, ``eval`` or ``compile`` of anything but a written-out string, a code object loaded
-    with ``marshal.loads``, or a code or function object built with ``types.CodeType`` or
-    ``types.FunctionType``, under whatever name the notebook imported them (``from marshal
-    import loads as f``). The shared-code report compares the code as written, so code decoded
-    from a string (say ``exec(zlib.decompress(base64.b64decode(...)))``) is invisible to it: the
-    instructor reads it. A lead, never a score."""
+    with ``marshal``, anything unpickled (``pickle``, ``dill``, ``cloudpickle``, ``joblib``: an
+    unpickled object can be a function, and unpickling can call any function), or a code or
+    function object built with ``types.CodeType`` or ``types.FunctionType``, under whatever name
+    the notebook imported them (``from marshal import loads as f``). The shared-code report
+    compares the code as written, so code decoded from a string (say
+    ``exec(zlib.decompress(base64.b64decode(...)))``) is invisible to it: the instructor reads
+    it. A lead, never a score."""
     trees = []
     for k, source in cells:
         code = "\n".join("" if line.lstrip().startswith(("%", "!")) else line for line in source.splitlines())
@@ -607,7 +620,7 @@ def run_time_code_note(cells: list[tuple[int, str]]) -> str | None:
         return None
     return (
         f"{', '.join(built[:3])} run{'s' if len(built) == 1 else ''} code built while the notebook runs "
-        "(exec, eval or compile of a string it makes, or a code object it loads or builds), which is not in "
+        "(exec, eval or compile of a string it makes, or code it unpickles, loads or builds), which is not in "
         "the notebook's text: the instructor reads it by hand"
     )
 
