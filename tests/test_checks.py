@@ -1808,6 +1808,27 @@ def test_a_law_that_writes_into_the_arms_state_is_told_so_not_that_it_diverged(c
     assert np.abs(log.q[-1] - q_d).max() < 0.05
 
 
+@pytest.mark.parametrize(
+    ("answer", "said"),
+    [
+        ([0.1, 0.2], "IK: skipped, the joint vector from IK has shape (2,), expected (3,): 3 numbers."),
+        ([[0.1], [0.2], [0.3]], "has shape (3, 1), expected (3,): 3 numbers; return it flat, np.ravel(...)"),
+        ([0.1, None, 0.3], "IK: skipped, the joint vector from IK contains None"),
+        (None, "IK: skipped, IK returned None: not implemented yet"),
+        ("abc", "IK: skipped, IK returned str, expected 3 numbers."),
+    ],
+)
+def test_an_ik_answer_of_the_wrong_shape_waits_with_the_checks_words(answer, said, capsys):
+    """The Problems' run cells take the IK's answer through attempt(..., joints=3): a wrong one
+    is named, and None comes back, so the cells after it wait instead of failing where the
+    angles are set into data.qpos (a NumPy broadcast error, which stopped "Run all")."""
+    from labsupport.grading import attempt
+
+    assert attempt("IK", lambda: answer, joints=3) is None
+    assert said in capsys.readouterr().out
+    np.testing.assert_array_equal(attempt("IK", lambda: [0.1, 0.2, 0.3], joints=3), [0.1, 0.2, 0.3])
+
+
 def test_a_law_check_names_a_write_into_the_state_and_keeps_the_score(capsys):
     """The law checks hand each call a copy of the state, so a law that writes into it is judged
     on its torque alone; the message now also says that it wrote, which the student's own run

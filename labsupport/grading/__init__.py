@@ -138,15 +138,18 @@ def as_controller(fn: Callable, *args) -> StudentController:
     return StudentController(fn, *args)
 
 
-def attempt(label: str, run: Callable, controller: StudentController | None = None, model=None):
+def attempt(label: str, run: Callable, controller: StudentController | None = None, model=None, joints=None):
     """Run ``run()`` (e.g. a simulation) and return its result, or print why it cannot run yet and return None.
 
     With the run's ``controller`` (from :func:`as_controller`) and ``model``, a divergence is
     explained: a damping too stiff for the time step is named as such, with its numbers and the
-    remedies.
+    remedies. With ``joints``, the result is a joint vector (an IK's answer), which must be that
+    many finite numbers: one of another shape is refused here, in the checks' words, so the
+    cells that use it wait instead of failing inside NumPy or MuJoCo.
     """
     try:
-        return run()
+        value = run()
+        return value if joints is None else as_vector(label, value, joints, "joint vector")
     except NotImplementedYet as err:
         print(f"{label}: skipped, {err}. Fill in the TODO above and run again.")
     except StudentError as err:
