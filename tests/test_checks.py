@@ -1607,6 +1607,36 @@ def test_pd_divergence_near_the_folded_arm_is_explained(master1, tmp_path, monke
     assert not (tmp_path / "MUJOCO_LOG.TXT").exists()  # the loop took MuJoCo's warnings itself
 
 
+def test_a_computed_torque_without_m_is_told_so_not_sent_to_the_time_step(tmp_path, monkeypatch, capsys):
+    """A "computed torque" that forgets M(q), Kp e − Kd q̇ + h, damps as PD does and diverges near
+    the folded arm at CT's gains (Kd·Δt/M = 18 × 0.002 / 0.0175 ≈ 2.06). Its message names the
+    missing M, in the notebook's run as in the checks', not the time step; the same damping under
+    a PD's name keeps the time-step words."""
+    from labsupport.grading import as_controller, attempt
+    from labsupport.sim import simulate
+
+    monkeypatch.chdir(tmp_path)
+    model = common.arm_model()
+
+    def ct_joint_torque(model, data, q_d, Kp, Kd):
+        return Kp * (q_d - data.qpos) - Kd * data.qvel + data.qfrc_bias
+
+    q_fold = np.array([0.8, 0.1, 1.5])  # the fold demo's goal
+    ctrl = as_controller(ct_joint_torque, q_fold, 100.0, 18.0)
+    data = mujoco.MjData(model)
+    assert attempt("CT", lambda: simulate(model, data, ctrl, 2.0, q0=problem1.Q0), ctrl, model) is None
+    probe = DirectProbe({"ct_joint_torque": ct_joint_torque})
+    with pytest.raises(StudentError) as err:
+        common.run_student(probe, "ct_joint_torque", (q_fold, 100.0, 18.0), 2.0, problem1.Q0)
+    for said in (capsys.readouterr().out, str(err.value)):
+        assert "your computed-torque law damps as PD does, with the same Kd = 18 on every joint" in said, said
+        assert "its feedback is not multiplied by M(q)" in said and "smaller time step would only hide" in said
+        assert "Remedies: a smaller time step" not in said
+    folded = np.array([0.0, 0.0, np.pi / 2])
+    as_pd = stiff_damping(model, partial(ct_joint_torque, q_d=folded, Kp=100.0, Kd=18.0), folded, np.zeros(3))
+    assert as_pd.startswith("the damping is too stiff for the time step") and "Remedies" in as_pd
+
+
 @pytest.mark.parametrize(
     "wrong",
     [

@@ -157,7 +157,7 @@ def attempt(label: str, run: Callable, controller: StudentController | None = No
     except SimulationDiverged as err:
         reason = None
         if controller is not None and model is not None:
-            reason = explain_divergence(model, controller.torque, controller.trace, err.t)
+            reason = explain_divergence(model, controller.torque, controller.trace, err.t, law=controller.name)
         print(
             f"{label}: the simulation diverged at t = {err.t:.3f} s: "
             + (reason or f"{err.reason}. Lower the gains, clip the torque, or check the signs of the law.")

@@ -480,7 +480,7 @@ def run_student(probe: Probe, fname: str, args, duration: float, q0, qdot0=None,
     try:
         return simulate(model, data, controller, duration, q0=q0, qdot0=qdot0, site=SITE, reference=reference)
     except SimulationDiverged as err:
-        reason = explain_divergence(model, student_controller(probe, fname, args), trace, err.t)
+        reason = explain_divergence(model, student_controller(probe, fname, args), trace, err.t, law=fname)
         raise StudentError(
             f"with {fname}, the simulation diverged at t = {err.t:.3f} s: "
             + (reason or "the arm ran away; check the signs of the feedback terms")

@@ -100,7 +100,15 @@ _REMEDIES = (
 )
 
 
-def stiff_damping(model: mujoco.MjModel, torque: Callable, q, qdot, t: float = 0.0) -> str | None:
+def is_computed_torque(name: str | None) -> bool:
+    """Whether a law's name says it is a computed torque (``ct_joint_torque``, ``ct_op_torque``,
+    ``ct_ik_joint_torque``: the Problems' TODO names hold ``ct`` as a word)."""
+    return isinstance(name, str) and "ct" in name.lower().split("_")
+
+
+def stiff_damping(
+    model: mujoco.MjModel, torque: Callable, q, qdot, t: float = 0.0, computed_torque: bool = False
+) -> str | None:
     r"""If the controller's damping at this state is too stiff for the time step, say so with the
     numbers and what to do; ``None`` if it is not.
 
@@ -115,6 +123,10 @@ def stiff_damping(model: mujoco.MjModel, torque: Callable, q, qdot, t: float = 0
 
     Args:
         torque: the controller, ``torque(model, data) -> tau``.
+        computed_torque: the law is meant to be a computed torque: a damping of PD's shape then
+            means the feedback is not multiplied by :math:`M(q)`, which the words say instead of
+            blaming the time step (computed torque's own damping :math:`M K_d` decays at
+            :math:`K_d`, far inside the limit at the Problems' gains).
     """
     limit = STABILITY_LIMIT
     if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qdot))):
@@ -139,6 +151,15 @@ def stiff_damping(model: mujoco.MjModel, torque: Callable, q, qdot, t: float = 0
         if ratios[j] > limit:
             inertia = float(M[j, j])
             name = _JOINT_NAMES[j] if j < len(_JOINT_NAMES) else f"joint {j + 1}"
+            if computed_torque:
+                return (
+                    f"{when}, your computed-torque law damps as PD does, with the same Kd = {kd:.3g} on every "
+                    f"joint: its feedback is not multiplied by M(q). Where the {name}'s inertia is small "
+                    f"(M = {inertia:.4g} kg·m²), Kd·Δt/M = {ratios[j]:.3g} is {above}. Computed torque's damping is "
+                    f"M(q)·Kd, which makes every joint's velocity decay at Kd = {kd:.3g} 1/s whatever its inertia "
+                    f"(Kd·Δt = {kd * dt:.3g}): multiply the whole feedback, Kp e + Kd ė (plus q̈_d), by M(q), "
+                    "then add h. A smaller time step would only hide the missing M."
+                )
             return (
                 f"the damping is too stiff for the time step. {when}, the {name} has inertia "
                 f"M = {inertia:.4g} kg·m² and the damping of the closed loop is Kd = {kd:.3g} N·m·s/rad on "
@@ -171,7 +192,7 @@ def stiff_damping(model: mujoco.MjModel, torque: Callable, q, qdot, t: float = 0
 
 
 def explain_divergence(
-    model: mujoco.MjModel, torque: Callable, trace: Trace, until: float, samples: int = 40
+    model: mujoco.MjModel, torque: Callable, trace: Trace, until: float, samples: int = 40, law: str | None = None
 ) -> str | None:
     """Why a run that diverged at ``until`` [s] did: the stiff-damping explanation
     (:func:`stiff_damping`) at the earliest recorded state where it applies (up to ``samples``
@@ -181,13 +202,14 @@ def explain_divergence(
     States after ``until`` are left out: the loop runs on after a run away and checks the speeds
     when it ends, so the trace may hold states turning at thousands of rad/s, where the bias
     forces' dependence on the velocity alone looks like a huge damping, and a law that is itself
-    unstable (a sign error) would be told it is not."""
+    unstable (a sign error) would be told it is not. ``law`` is the law's name, which says
+    whether it is meant as a computed torque (:func:`is_computed_torque`)."""
     states = [s for s in trace.states if s[2] <= until]
     if not states:
         return None
     for k in np.unique(np.linspace(0, len(states) - 1, min(samples, len(states))).astype(int)):
         q, qdot, t = states[k]
-        reason = stiff_damping(model, torque, q, qdot, t)
+        reason = stiff_damping(model, torque, q, qdot, t, computed_torque=is_computed_torque(law))
         if reason is not None:
             return reason
     return None
