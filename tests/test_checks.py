@@ -384,6 +384,11 @@ def test_ik_mistakes_are_named(master1):
     assert near.score == 1 and 1e-5 < worst_error(near) < 1e-4
     wrong_elbow = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, elbow_up) + [0.0, 0.3, 0.0])
     assert wrong_elbow.score == 0 and "the pan angle is right" in wrong_elbow.message
+    assert "check the planar 2R solve" in wrong_elbow.message and "numerical IK" not in wrong_elbow.message
+    # a numerical IK stopped a little early (about 0.15 mm off) is told to iterate further
+    early = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, elbow_up) + [0.0, 0.0, 1.5e-4])
+    assert early.score < 1 and "more than the 0.1 mm allowed" in early.message
+    assert "a numerical IK must go on until the tip is within 0.1 mm" in early.message
     swapped_pan = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik([x[1], x[0], x[2]], elbow_up))
     assert swapped_pan.score < 1 and "azimuth atan2(y, x)" in swapped_pan.message
     # and the azimuth it quotes is the target's own
@@ -1605,6 +1610,23 @@ def test_pd_divergence_near_the_folded_arm_is_explained(master1, tmp_path, monke
     with pytest.raises(Exception, match="too stiff for the time step.*Kd·Δt/M"):
         common.run_student(probe, "pd_torque", (np.array([0.8, 0.1, 1.5]), 400.0, 50.0), 2.0, problem1.Q0)
     assert not (tmp_path / "MUJOCO_LOG.TXT").exists()  # the loop took MuJoCo's warnings itself
+
+
+def test_an_os_ct_with_the_jacobian_of_the_wrong_point_is_told_so():
+    """mj_jacBody of link3 (the elbow: its origin is on joint 3's axis, so joint 3's column is
+    zero) makes np.linalg.solve raise "Singular matrix" at every test state: the reason names the
+    wrong point and the end effector's site, not only a scratch MjData."""
+
+    def ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        J = np.zeros((3, model.nv))
+        mujoco.mj_jacBody(model, data, J, None, model.body("link3").id)
+        x = data.site("end_effector").xpos
+        a = xdd_d + Kd * (xd_d - J @ data.qvel) + Kp * (x_d - x)
+        return mass_matrix(model, data) @ np.linalg.solve(J, a) + data.qfrc_bias
+
+    result = grade("p2_osct", ct_op_torque=ct_op_torque)
+    assert result.score == 0 and "Singular matrix" in result.message, result.message
+    assert "the Jacobian of the wrong point" in result.message and "mj_jacSite with 'end_effector'" in result.message
 
 
 def test_a_computed_torque_without_m_is_told_so_not_sent_to_the_time_step(tmp_path, monkeypatch, capsys):

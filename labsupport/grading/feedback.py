@@ -347,11 +347,16 @@ def noting_state_write(result: Result, probe: Probe) -> Result:
     return replace(result, message=result.message + note)
 
 
-#: Why a law's matrix may be singular where the arm is not: a scratch ``MjData`` whose positions
-#: were set but whose kinematics were not computed has a zero Jacobian.
+#: Why a law's matrix may be singular where the arm is not: the Jacobian of a point that a joint
+#: does not move (a body whose origin is on that joint's axis: link3's, on joint 3's) has a zero
+#: column; and a scratch ``MjData`` whose positions were set but whose kinematics were not
+#: computed has a zero Jacobian.
 SINGULAR_HINT = (
-    " (a Jacobian computed on a scratch MjData is all zeros until, after setting its qpos, "
-    "mujoco.mj_kinematics and mujoco.mj_comPos have run; check it before solving)"
+    " (where the arm is not stretched out or folded, a singular Jacobian is the Jacobian of the wrong "
+    "point or of data not yet computed: take the end effector's site, mj_jacSite with 'end_effector' (a "
+    "body's origin on a joint's axis, such as link3's, does not move with that joint, so its column is "
+    "zero), and on a scratch MjData run mujoco.mj_kinematics and mujoco.mj_comPos after setting its "
+    "qpos; check J before solving)"
 )
 
 

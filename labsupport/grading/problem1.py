@@ -63,6 +63,9 @@ REACH_TOL = 1e-3  # final end-effector error the computed torque must reach [m]
 #: An IK solution must put the tip this close to the target [m] (a tenth of the reach tolerance:
 #: a numerical IK that stops at 1e-5 m passes).
 IK_TOL = 1e-4
+#: An IK answer this close to the target [m], but not within :data:`IK_TOL`, is told how a
+#: numerical IK gets there (a closed form is either right or centimetres off).
+NEARLY = 1e-2
 N_TARGETS = 5
 #: The ranges the formula checks draw their gains from: (Kp range, Kd range).
 PD_GAINS = ((100, 500), (10, 60))
@@ -100,9 +103,15 @@ def _ik_problem(model, q, x, up: bool) -> str | None:
                 "return them in radians (do not convert with np.degrees)"
             )
         if pan_error(q, x) < 1e-3:
+            advice = "check the planar 2R solve for q2, q3"
+            if err < NEARLY:  # close, as a numerical IK stopped too early is
+                advice = (
+                    f"a numerical IK must go on until the tip is within {IK_TOL * 1e3:g} mm (stop it at 1e-5 m: a "
+                    f"tighter tolerance, or more iterations); a closed-form one: {advice}"
+                )
             return (
                 f"the pan angle is right, but the {_branch(up)} solution {q} puts the end effector "
-                f"{err:.4g} m from the target {x}: check the planar 2R solve for q2, q3"
+                f"{err:.4g} m from the target {x}, more than the {IK_TOL * 1e3:g} mm allowed: {advice}"
             )
         return (
             f"the pan angle q1 = {q[0]:.5g} rad, but the target {x} has azimuth atan2(y, x) = {azimuth:.4f} rad; "
