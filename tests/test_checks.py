@@ -1612,6 +1612,21 @@ def test_pd_divergence_near_the_folded_arm_is_explained(master1, tmp_path, monke
     assert not (tmp_path / "MUJOCO_LOG.TXT").exists()  # the loop took MuJoCo's warnings itself
 
 
+def test_an_os_ct_that_reads_x_at_the_elbow_is_told_which_point_it_took():
+    """x from the elbow's body origin where the tip's site belongs: named as that mistake (with its
+    quarter of the points), not left as "the difference lies in another term"."""
+
+    def ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        J = site_jacobian(model, data, "end_effector")[:3]
+        x = data.body("link3").xpos  # the elbow, not the tip
+        a = xdd_d + Kd * (xd_d - J @ data.qvel) + Kp * (x_d - x) - site_jdot_qdot(model, data, "end_effector")[:3]
+        return mass_matrix(model, data) @ np.linalg.solve(J, a) + data.qfrc_bias
+
+    result = grade("p2_osct", ct_op_torque=ct_op_torque)
+    assert result.score == pytest.approx(0.25) and "x is not the end effector's position" in result.message
+    assert "the body 'link3'" in result.message and "data.site('end_effector').xpos" in result.message
+
+
 def test_an_os_ct_with_the_jacobian_of_the_wrong_point_is_told_so():
     """mj_jacBody of link3 (the elbow: its origin is on joint 3's axis, so joint 3's column is
     zero) makes np.linalg.solve raise "Singular matrix" at every test state: the reason names the

@@ -34,6 +34,7 @@ from labsupport.grading.common import (
     Verdict,
     arm_model,
     call_along,
+    data_at,
     draw_configuration,
     elbow_height,
     formula_scoring,
@@ -217,7 +218,27 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
             M @ np.linalg.solve(J.T, xdd_d + fb - jdq) + h, "solve with J, not Jᵀ: q̈ = J⁻¹(...).", 0.0
         ),
         "own_gains": own_gains_mistake(law(xdd_d + KD * edot + KP * e - jdq), KP, KD),
+        **_wrong_point_mistakes(model, state, law, x_d, xd_d, xdd_d, Kp, Kd, edot, jdq),
     }
+
+
+def _wrong_point_mistakes(model, state, law, x_d, xd_d, xdd_d, Kp, Kd, edot, jdq) -> dict[str, Mistake]:
+    """The law right but for its x: the origin of one of the arm's bodies (the elbow's, say, read
+    from ``data.xpos`` or ``data.body(...)``) where the end effector's site belongs."""
+    data = data_at(model, state.q)
+    found = {}
+    for b in range(1, model.nbody):
+        if model.body_mocapid[b] >= 0:  # the target's marker, not a point of the arm
+            continue
+        name = model.body(b).name or f"body {b}"
+        found[f"point_{name}"] = Mistake(
+            law(xdd_d + Kd * edot + Kp * (x_d - data.xpos[b]) - jdq),
+            f"x is not the end effector's position: the law uses the origin of the body {name!r} "
+            f"(data.xpos[{b}]), which is not the tip. Take x = data.site('end_effector').xpos, the point the "
+            "Jacobian and the circle are about.",
+            0.25,
+        )
+    return found
 
 
 def _os_case(model, case: Case):
