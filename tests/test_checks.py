@@ -1340,6 +1340,23 @@ def test_a_law_carried_under_a_made_up_file_name_is_known_by_its_compiled_code()
     assert result.score == 0 and "labsupport.controllers.joint_space.ct_joint_torque is off limits" in result.message
 
 
+def test_a_law_written_to_a_file_from_data_and_imported_is_known_by_its_code(tmp_path):
+    """The law's source written to a file of the student's own (decoded from a string, say) and
+    imported from there: its module and file are not labsupport's, its text is not in a cell, and
+    its compiled code is the library law's."""
+    path = tmp_path / "notes.py"
+    path.write_text(Path(joint_space_alias.__file__).read_text(encoding="utf-8"), encoding="utf-8")
+    spec = importlib.util.spec_from_file_location("notes", path)
+    notes = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(notes)
+
+    def carried(model, data, q_d, Kp, Kd):
+        return notes.ct_joint_torque(model, data, q_d, np.zeros(3), np.zeros(3), Kp, Kd)
+
+    result = grade("p1_ct", ct_joint_torque=carried)
+    assert result.score == 0 and "labsupport.controllers.joint_space.ct_joint_torque is off limits" in result.message
+
+
 def test_a_law_pasted_into_a_cell_is_the_notebooks_own_code():
     """Its compiled code is the library law's, but its text is in the cell its code names (as
     IPython keeps it): graded as the notebook's own code, full marks for a right law. The same

@@ -218,11 +218,11 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
             M @ np.linalg.solve(J.T, xdd_d + fb - jdq) + h, "solve with J, not Jᵀ: q̈ = J⁻¹(...).", 0.0
         ),
         "own_gains": own_gains_mistake(law(xdd_d + KD * edot + KP * e - jdq), KP, KD),
-        **_wrong_point_mistakes(model, state, law, x_d, xd_d, xdd_d, Kp, Kd, edot, jdq),
+        **_wrong_point_mistakes(model, state, law, x_d, xdd_d, Kp, Kd, edot, jdq),
     }
 
 
-def _wrong_point_mistakes(model, state, law, x_d, xd_d, xdd_d, Kp, Kd, edot, jdq) -> dict[str, Mistake]:
+def _wrong_point_mistakes(model, state, law, x_d, xdd_d, Kp, Kd, edot, jdq) -> dict[str, Mistake]:
     """The law right but for its x: the origin of one of the arm's bodies (the elbow's, say, read
     from ``data.xpos`` or ``data.body(...)``) where the end effector's site belongs."""
     data = data_at(model, state.q)

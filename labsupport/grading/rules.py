@@ -229,29 +229,32 @@ _CARRIED: dict[int, tuple[CodeType, str | None]] = {}
 
 def carried_forbidden_code(code: CodeType) -> str | None:
     """The qualified name of the :data:`FORBIDDEN` function that ``code`` is a compiled copy of,
-    whatever name and file the copy claims, unless its text is written where it says it was
-    (:func:`_written_where_it_says`); else ``None``. This catches a law carried into the
-    notebook compiled (pickled, marshalled, rebuilt from bytes) under a made-up file name, which
-    neither the module rule nor the file rule sees; a law whose text is pasted into a cell is the
-    notebook's own code, graded as such. Cached per code object: the watch asks for every call."""
+    whatever name and file the copy claims, unless it was written in one of the notebook's cells
+    (:func:`_written_in_a_cell`); else ``None``. This catches a law carried into the notebook
+    compiled (pickled, marshalled, rebuilt from bytes) under a made-up file name, or written to a
+    file from data and imported, which neither the module rule nor the file rule sees; a law
+    whose text is pasted into a cell is the notebook's own code, graded as such. Cached per code
+    object: the watch asks for every call."""
     seen = _CARRIED.get(id(code))
     if seen is None or seen[0] is not code:
         name = forbidden_code().get(code_fingerprint(code))
-        if name is not None and _written_where_it_says(code):
+        if name is not None and _written_in_a_cell(code):
             name = None
         seen = _CARRIED[id(code)] = (code, name)
     return seen[1]
 
 
-def _written_where_it_says(code: CodeType) -> bool:
-    """Whether the text of the file ``code`` names (for a notebook cell, the cell's text, which
-    IPython keeps in ``linecache``) compiles to code with the same fingerprint."""
-    lines = linecache.getlines(code.co_filename)
-    if not lines:
+def _written_in_a_cell(code: CodeType) -> bool:
+    """Whether ``code`` was compiled from the text of a notebook cell: IPython keeps each cell's
+    text in ``linecache`` under the name its code carries, with no modification time (it is no
+    file; a file's text, written by the notebook from data it decoded, has one), and that text
+    compiles to code with the same fingerprint."""
+    entry = linecache.cache.get(code.co_filename)
+    if not (isinstance(entry, tuple) and len(entry) == 4 and entry[1] is None):
         return False
     try:
-        compiled = compile("".join(lines), code.co_filename, "exec", dont_inherit=True)
-    except (SyntaxError, ValueError, RecursionError, MemoryError):
+        compiled = compile("".join(entry[2]), code.co_filename, "exec", dont_inherit=True)
+    except (SyntaxError, ValueError, TypeError, RecursionError, MemoryError):
         return False
     fingerprint = code_fingerprint(code)
     return any(code_fingerprint(c) == fingerprint for c in _codes_within(compiled))
