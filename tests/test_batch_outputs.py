@@ -336,6 +336,49 @@ def test_a_regrade_into_the_same_folder_keeps_the_earlier_grades_and_seed(tmp_pa
     assert set(_rows(out)) == {"a.ipynb"} and set(_rows(out / "previous")) == {"a.ipynb", "b.ipynb"}
 
 
+def test_every_earlier_run_is_kept_not_only_the_last(tmp_path):
+    """A third run used to replace the first run's grades, seed and feedback in previous/ with
+    the second's: the first run's seed, which reproduces its grades, was gone."""
+    out = tmp_path / "out"
+    for seed, files in ((1, ("a", "b")), (2, ("a",)), (3, ("a", "c"))):
+        subs = _folder(tmp_path / f"run{seed}", {f"{name}.ipynb": b"x" for name in files})
+        batch.run_batch(subs, SPEC, out, jobs=1, unsafe_no_sandbox=True, seed=seed)
+    for folder, seed, rows in (
+        (out, 3, {"a", "c"}),
+        (out / "previous", 2, {"a"}),
+        (out / "previous" / "previous", 1, {"a", "b"}),
+    ):
+        assert json.loads((folder / "batch.json").read_text(encoding="utf-8"))["seed"] == seed
+        assert set(_rows(folder)) == {f"{name}.ipynb" for name in rows}
+        assert sorted(p.name for p in (folder / "feedback").iterdir()) == sorted(f"{name}.txt" for name in rows)
+    assert not (out / "previous" / "previous" / "previous").exists()
+
+
+def test_an_output_folder_inside_the_submissions_or_a_missing_folder_is_refused(tmp_path):
+    """The output inside the submissions used to be accepted: the next batch listed the grader's
+    own files among the submissions. A missing folder was said to be "not a folder"."""
+    subs = _folder(tmp_path / "subs", {"a.ipynb": b"x"})
+    for out in (subs, subs / "grades"):
+        with pytest.raises(ValueError, match="is inside the submissions folder .*Give --out a folder outside it"):
+            batch.run_batch(subs, SPEC, out, jobs=1, unsafe_no_sandbox=True)
+    assert sorted(p.name for p in subs.iterdir()) == ["a.ipynb"]
+    with pytest.raises(ValueError, match="submissionz does not exist"):
+        batch.run_batch(tmp_path / "submissionz", SPEC, tmp_path / "out", jobs=1, unsafe_no_sandbox=True)
+
+
+def test_a_notebook_of_another_problem_is_named_in_its_row():
+    """A Problem 2 notebook in a Problem 1 batch was scored with only "pd_torque is not defined
+    in the notebook (its cell was deleted, renamed ...)": its own metadata says which it is."""
+    problem2 = (ROOT / "notebooks" / "problem2_tracking.ipynb").read_bytes()
+    note = judge.other_problem_note(problem2, "problem1")
+    assert note.startswith("this notebook is problem2's (its metadata says so), graded here with problem1's checks")
+    assert note.endswith("grade it with --problem problem2")
+    assert judge.other_problem_note((ROOT / "notebooks" / "problem1_reaching.ipynb").read_bytes(), "problem1") is None
+    forged = json.dumps({"metadata": {"labsupport_grading": {"problem": "x\nScore: 10 / 10"}}, "cells": []}).encode()
+    assert judge.other_problem_note(forged, "problem1") is None  # a name no spec has is never quoted
+    assert judge.other_problem_note(b"not json", "problem1") is None
+
+
 def test_the_batch_writes_the_problems_rubric_beside_the_grades(tmp_path):
     """The partial credit of each named mistake used to be in the checks' code only."""
     out = tmp_path / "out"

@@ -21,7 +21,7 @@ other or with the master's solution (:mod:`labsupport.instructor.similarity`).
 A row whose grading failed ("error") or ran out of wall-clock time ("timed out: regrade") gets
 no score, never a zero. Every message is written on one line, without control characters
 (student code writes into them); the files are the owner's alone when run as a command, and
-feedback files left in OUT by an earlier batch are removed.
+an earlier batch's results in OUT, its feedback files included, move into ``OUT/previous/``.
 
 How a submission is isolated:
 
@@ -75,7 +75,6 @@ from labsupport.instructor.outputs import (
     csv_cell,
     keep_previous,
     keep_private,
-    remove_stale_feedback,
 )
 from labsupport.instructor.rubric import canvas_rubric_csv, rubric
 from labsupport.instructor.submissions import held, is_os_metadata, is_zip, open_zip, safe_zip_entries, zip_notebooks
@@ -224,8 +223,15 @@ def run_batch(
         raise ValueError(f"the seed must be a whole number, 0 or more; got --seed {seed}")
     spec_path = Path(spec_path).resolve()
     spec = load_spec(spec_path)
+    if not Path(submissions).exists():
+        raise ValueError(f"submissions must be a folder of .ipynb files; {submissions} does not exist")
     if not Path(submissions).is_dir():
         raise ValueError(f"submissions must be a folder of .ipynb files; {submissions} is not a folder")
+    if Path(out).resolve().is_relative_to(Path(submissions).resolve()):
+        raise ValueError(
+            f"the output folder {out} is inside the submissions folder {submissions}: the next batch would find the "
+            "grades among the submissions (and a zip of the folder would carry them). Give --out a folder outside it"
+        )
     files, aside = list_notebooks(submissions), left_aside(submissions)
     if aside:  # nothing is left aside unsaid
         print("not graded (not .ipynb files): " + clean_text(", ".join(aside)), file=sys.stderr)
@@ -420,13 +426,11 @@ def feedback_names(files: list[str]) -> dict[str, str]:
 def _write_results(out: Path, spec: dict, rows: list[dict], record: dict, shared: dict[str, str]) -> None:
     """Write ``grades.csv``, a feedback file per row, ``batch.json``, the Problem's grading
     rubric (``rubric.md``, and ``rubric_canvas.csv`` for Canvas: :mod:`labsupport.instructor.rubric`)
-    and the ``shared`` code reports (:mod:`labsupport.instructor.similarity`) into ``out``; then
-    remove the feedback files of an earlier batch
-    (:func:`labsupport.instructor.outputs.remove_stale_feedback`).
-    An earlier batch's ``grades.csv``, ``batch.json`` (its seed) and code reports move to
-    ``out/previous/`` first, replacing what an even earlier one left there."""
+    and the ``shared`` code reports (:mod:`labsupport.instructor.similarity`) into ``out``.
+    An earlier batch's ``grades.csv``, ``batch.json`` (its seed), code reports and feedback move
+    to ``out/previous/`` first, and what an even earlier one left there to ``previous/previous/``."""
     out = Path(out)
-    keep_previous(out, BATCH_RESULTS)
+    keep_previous(out, BATCH_RESULTS, feedback="feedback")
     atomic_write(out / "grades.csv", grades_csv(spec, rows, record["seed"]))
     names = feedback_names([row["file"] for row in rows])
     for row in rows:
@@ -436,7 +440,6 @@ def _write_results(out: Path, spec: dict, rows: list[dict], record: dict, shared
     atomic_write(out / "rubric_canvas.csv", canvas_rubric_csv(spec))
     for name, text in shared.items():
         atomic_write(out / name, text)
-    remove_stale_feedback(out / "feedback", set(names.values()))
 
 
 def atomic_write(path: Path, text: str) -> None:

@@ -21,9 +21,9 @@ Gradebook's *Export* gives, grades each student's notebook with
   (``rubric.md``, and ``rubric_canvas.csv`` for the course's *Rubrics → Import Rubric*), and
   the pairs of students who share code (``similarity.html``: :mod:`labsupport.instructor.similarity`).
 
-A regrade into the same ``OUT`` first moves the earlier run's import, report and zip into
-``OUT/previous/``, and the earlier batch's results into ``OUT/batch/previous/``
-(:func:`labsupport.instructor.outputs.keep_previous`).
+A regrade into the same ``OUT`` first moves the earlier run's import, report, zip and feedback
+into ``OUT/previous/``, and the earlier batch's results into ``OUT/batch/previous/``; an even
+earlier run's move one level down (:func:`labsupport.instructor.outputs.keep_previous`).
 
 What Canvas produces, and where each fact comes from (Canvas's own source), is told where it is
 read: :mod:`labsupport.instructor.submissions` for the zip and the re-uploaded feedback files,
@@ -62,7 +62,6 @@ from labsupport.instructor.outputs import (
     clean_text,
     keep_previous,
     keep_private,
-    remove_stale_feedback,
 )
 from labsupport.instructor.submissions import (
     SubmissionFile,
@@ -152,11 +151,10 @@ def grade_canvas(
         raise ValueError(
             f"cannot write the output folder {out} ({err.strerror}): give --out a folder you can write to"
         ) from None
-    keep_previous(out, CANVAS_RESULTS)
+    keep_previous(out, CANVAS_RESULTS, feedback="feedback")
     grade = grade or partial(run_batch, jobs=jobs, seed=seed, compare_with=compare_with)
     rows = _grade(Path(submissions_zip), chosen, spec_path, out, result, grade)
     _record_scores(gradebook, col, spec, chosen, rows, out, result)
-    remove_stale_feedback(out / "feedback", {path.name for path in result.feedback.values()})
     (out / "gradebook_import.csv").write_bytes(fill_column(gradebook, col, result.scores).encode("utf-8"))
     _write_feedback_zip(out, result)
     (out / "report.txt").write_text(report_text(gradebook, spec, result), encoding="utf-8")
@@ -239,7 +237,7 @@ def _grade(
 ) -> dict[int, dict]:
     """Unpack the chosen notebooks into a private folder, grade them, and key the rows by user id.
     With none to grade, an earlier batch's results in ``OUT/batch`` are moved into its
-    ``previous/`` and its feedback removed, so that none of it stands beside this run's import."""
+    ``previous/`` with its feedback, so that none of it stands beside this run's import."""
     if not chosen:
         _retire_batch(out / "batch")
         return {}
@@ -277,12 +275,10 @@ def _grade(
 
 
 def _retire_batch(folder: Path) -> None:
-    """Move an earlier batch's results in ``folder`` into ``folder/previous/`` and remove its
-    feedback files (a run with nothing to grade writes no batch of its own)."""
+    """Move an earlier batch's results in ``folder``, its feedback files included, into
+    ``folder/previous/`` (a run with nothing to grade writes no batch of its own)."""
     if folder.is_dir():
-        keep_previous(folder, BATCH_RESULTS)
-        if (folder / "feedback").is_dir():
-            remove_stale_feedback(folder / "feedback", set())
+        keep_previous(folder, BATCH_RESULTS, feedback="feedback")
 
 
 def _record_scores(

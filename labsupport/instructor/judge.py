@@ -484,6 +484,26 @@ def _decode(name: str, answer: dict, call: bool = False):
 # ---------------------------------------------------------------------------------------------
 
 
+def other_problem_note(text: bytes, problem: str | None) -> str | None:
+    """A note when the notebook says it is another Problem's (the ``labsupport_grading`` metadata
+    that the handed-out notebooks carry): a Problem 2 notebook graded with Problem 1's checks
+    finds none of their functions, and its feedback alone would read as cells deleted or renamed.
+    The notebook is graded all the same (its metadata is the student's to edit); None when it
+    names no Problem or this one."""
+    try:
+        meta = json.loads(text.decode("utf-8")).get("metadata", {}).get("labsupport_grading", {})
+        named = meta.get("problem") if isinstance(meta, dict) else None
+    except (ValueError, AttributeError, RecursionError):
+        return None
+    well_formed = isinstance(named, str) and re.fullmatch(r"[A-Za-z0-9_]{1,40}", named)
+    if problem is None or not well_formed or named == problem:
+        return None  # no Problem named, this one, or a name no spec could have (never quoted)
+    return (
+        f"this notebook is {named}'s (its metadata says so), graded here with {problem}'s checks: if the "
+        f"student handed in the wrong notebook, ask for the right one; else grade it with --problem {named}"
+    )
+
+
 def read_cells(text: bytes) -> list[tuple[int, str]]:
     """``(cell index, source)`` of every code cell; ValueError with a plain reason if unreadable.
 
@@ -736,6 +756,8 @@ def grade(
     command, env, cwd = start()
     probe = SandboxProbe(command, cells, budget, env=env, cwd=cwd, limits=limits)
     notes: list[str] = []
+    if note := other_problem_note(notebook, spec.get("problem")):
+        notes.append(note)
     if note := run_time_code_note(cells):
         notes.append(note)
     scores, messages, statuses, wrote_state = {}, {}, {}, {}

@@ -1,5 +1,5 @@
 """What the graders write, and how: every text a student's code can reach made safe for a file,
-the feedback files recognised and cleared, and an earlier run's results kept.
+the feedback files recognised, and every earlier run's results kept.
 
 Both graders use it: :mod:`labsupport.instructor.batch` (a folder of notebooks) and
 :mod:`labsupport.instructor.canvas` (a Canvas zip and gradebook), and so does the shared-code
@@ -18,10 +18,11 @@ MAX_MESSAGE_CHARS = 2000
 #: Bidirectional overrides and isolates: they reorder what a reader sees of the text around them.
 _BIDI_CONTROLS = frozenset("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
 
-#: How every feedback file either grader writes begins (how a stale one is recognised).
+#: How every feedback file either grader writes begins (how an earlier run's is recognised).
 FEEDBACK_HEADER = "Feedback on "
 
-#: The files a batch writes that a regrade into the same folder moves into ``previous/``.
+#: The files a batch writes that a regrade into the same folder moves into ``previous/`` (with
+#: the feedback files it wrote: :func:`keep_previous`'s ``feedback``).
 BATCH_RESULTS = ("grades.csv", "batch.json", "similarity.csv", "similarity.html")
 
 #: The same for a Canvas run: the import, the report and the feedback zip.
@@ -68,37 +69,47 @@ def _visible(c: str) -> str:
     return c
 
 
-def remove_stale_feedback(folder: Path, keep: set[str]) -> None:
-    """Delete the feedback files an earlier run left in ``folder`` (a regrade into the same
-    ``--out``), so that it matches what was just graded; only ``*.txt`` files a grader wrote (they
-    begin with :data:`FEEDBACK_HEADER`) are touched. Names are compared in any case, as a
-    case-insensitive file system would."""
-    keep = {name.casefold() for name in keep}
+def feedback_files(folder: Path) -> list[Path]:
+    """The feedback files a grader wrote in ``folder``: ``*.txt`` files that begin with
+    :data:`FEEDBACK_HEADER` (an instructor's own notes there are not among them)."""
+    if not folder.is_dir():
+        return []
     header = FEEDBACK_HEADER.encode()
-    for path in folder.iterdir():
-        if path.name.casefold() in keep or not path.name.endswith(".txt") or path.is_symlink() or not path.is_file():
+    found = []
+    for path in sorted(folder.iterdir()):
+        if not path.name.endswith(".txt") or path.is_symlink() or not path.is_file():
             continue
         try:
             with open(path, "rb") as f:
-                stale = f.read(len(header)) == header
-            if stale:
-                path.unlink()
-        except OSError:  # not this grader's to remove
+                if f.read(len(header)) == header:
+                    found.append(path)
+        except OSError:  # not this grader's to touch
             continue
+    return found
 
 
-def keep_previous(folder: Path, names: tuple[str, ...]) -> None:
-    """Move the files ``names`` that an earlier run wrote in ``folder`` into ``folder/previous/``,
-    replacing what an even earlier run left there: a regrade into the same folder loses nothing,
+def keep_previous(folder: Path, names: tuple[str, ...], feedback: str | None = None, quiet: bool = False) -> None:
+    """Move the files ``names`` that an earlier run wrote in ``folder``, and the feedback files it
+    wrote in ``folder/feedback`` (:func:`feedback_files`) when a ``feedback`` folder name is given,
+    into ``folder/previous/``, after moving what an even earlier run left there into
+    ``previous/previous/`` (and so on): a regrade into the same folder loses nothing of any run,
     and leaves nothing of the earlier run beside its own results."""
     earlier = [folder / name for name in names if (folder / name).is_file()]
-    if not earlier:
+    fed_back = feedback_files(folder / feedback) if feedback else []
+    if not earlier and not fed_back:
         return
     previous = folder / "previous"
-    previous.mkdir(exist_ok=True)
+    keep_previous(previous, names, feedback, quiet=True) if previous.is_dir() else previous.mkdir()
     for path in earlier:
         os.replace(path, previous / path.name)
-    print(f"the earlier run's {', '.join(p.name for p in earlier)} are now in {previous}")
+    if fed_back:
+        (previous / feedback).mkdir(exist_ok=True)
+        for path in fed_back:
+            os.replace(path, previous / feedback / path.name)
+    if not quiet:
+        moved = [p.name for p in earlier] + ([f"{feedback}/ ({len(fed_back)} files)"] if fed_back else [])
+        older = " (the runs before it: in previous/previous, and so on)" if (previous / "previous").is_dir() else ""
+        print(f"the earlier run's {', '.join(moved)} are now in {previous}{older}")
 
 
 def keep_private() -> None:
