@@ -381,7 +381,8 @@ def test_report_lists_late_resubmissions_groups_and_scaling(round_trip):
         "  - Lee, Kim: replaces the grade 10.00 already in Canvas with 16"
     )
     assert result.notes == [  # and nothing else: no name-differs note for Copy_of_..., no OS files skipped
-        "the Problem's checks add up to 10 points and the column to 20: every score is scaled by 20/10",
+        "the Problem's checks add up to 10 points and the column to 20: every score is scaled by 20/10, and so "
+        "is rubric_canvas.csv here (the one in batch/ is out of 10)",
         "Wong, Mei: the file is named after 'theroboticists', not this student (a group submission?); the grade "
         "is written for this student only",
     ]
@@ -475,6 +476,19 @@ def test_semicolons_bom_crlf_and_decimal_commas_survive(tmp_path):
     assert after.delimiter == ";" and after.rows[0] == [*before.rows[0][:5], COLUMN]
     assert after.rows[2] == [*before.rows[2][:5], "20,00"]  # the Points Possible row, decimal comma kept
     assert after.cell(1235, after.header.index(COLUMN)) == "15"
+
+
+def test_the_canvas_rubric_beside_the_import_adds_up_to_the_columns_points(round_trip):
+    """The rubric the batch writes is out of the checks' 10 while the column is out of 20: students
+    saw a 10-point rubric beside a grade out of 20. The one beside the import is scaled alike."""
+    import csv as csv_module
+    import io
+
+    result, out, _ = round_trip
+    rows = list(csv_module.reader(io.StringIO((out / "rubric_canvas.csv").read_text(encoding="utf-8"))))[1:]
+    tops = [float(row[6]) for row in rows]  # each criterion's first rating: its full marks
+    assert sum(tops) == pytest.approx(result.points_possible) == pytest.approx(20.0)
+    assert any("rubric_canvas.csv here" in n for n in result.notes)
 
 
 def test_no_scaling_when_the_column_is_worth_the_checks(tmp_path):

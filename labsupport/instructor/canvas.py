@@ -63,6 +63,7 @@ from labsupport.instructor.outputs import (
     keep_previous,
     keep_private,
 )
+from labsupport.instructor.rubric import canvas_rubric_csv
 from labsupport.instructor.submissions import (
     SubmissionFile,
     choose_notebook,
@@ -142,7 +143,8 @@ def grade_canvas(
         result.notes.append(
             f"the Problem's checks add up to {result.maximum:g} points and the column to "
             f"{result.points_possible:g}: every score is scaled by "
-            f"{result.points_possible:g}/{result.maximum:g}"
+            f"{result.points_possible:g}/{result.maximum:g}, and so is rubric_canvas.csv here (the one in "
+            f"batch/ is out of {result.maximum:g})"
         )
     chosen = _select_submissions(Path(submissions_zip), gradebook, spec, result)
     try:
@@ -158,6 +160,8 @@ def grade_canvas(
     (out / "gradebook_import.csv").write_bytes(fill_column(gradebook, col, result.scores).encode("utf-8"))
     _write_feedback_zip(out, result)
     (out / "report.txt").write_text(report_text(gradebook, spec, result), encoding="utf-8")
+    scale = 1.0 if result.points_possible is None else result.points_possible / result.maximum
+    (out / "rubric_canvas.csv").write_text(canvas_rubric_csv(spec, scale), encoding="utf-8")
     return result
 
 

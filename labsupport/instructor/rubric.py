@@ -139,16 +139,17 @@ def canvas_ratings(check: str, points: float) -> list[tuple[str, str, float]]:
     return ratings
 
 
-def canvas_rubric_csv(spec: dict) -> str:
+def canvas_rubric_csv(spec: dict, scale: float = 1.0) -> str:
     """The rubric of the Problem an autograder spec describes, as a CSV for Canvas's *Import
     Rubric*: one criterion per check, named ``<check>: <title>``, described by how it scores,
-    with the ratings of :func:`canvas_ratings`."""
+    with the ratings of :func:`canvas_ratings`; every point times ``scale`` (the Canvas column's
+    points possible over the checks' total, so the rubric adds up to the column's grade)."""
     rows = []
     for c in spec["checks"]:
         module = _module_of(c["name"])
         ranged = "true" if c["name"] in module.PROPORTIONAL else "false"  # any share of the points
         row = [f"{spec['problem']}: grading rubric", f"{c['name']}: {c['title']}", module.SCORING[c["name"]], ranged]
-        for name, description, points in canvas_ratings(c["name"], c["points"]):
+        for name, description, points in canvas_ratings(c["name"], float(c["points"]) * scale):
             row += [name, description, f"{round(points, 2):g}"]
         rows.append(row)
     most = max(len(row) for row in rows)
