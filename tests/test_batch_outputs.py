@@ -158,7 +158,7 @@ def test_a_row_the_grader_failed_on_gets_no_score_never_a_zero(tmp_path, monkeyp
     assert "- p1_ik (- / 3): not graded: the grader failed: the model file is missing" in feedback
 
 
-EMPTY_REASON = "the file is empty (0 bytes): ask the student to upload it again"
+EMPTY_REASON = "the file is empty (0 bytes): the upload went wrong, and the notebook must be uploaded again"
 
 
 def test_an_empty_upload_is_unreadable_and_says_to_ask_for_it_again(tmp_path):

@@ -85,7 +85,7 @@ UNSAFE_NOTE = "graded WITHOUT a sandbox (--unsafe-no-sandbox): only for submissi
 #: their score cells stay blank, never 0, and their feedback says the score is not recorded.
 UNSCORED = ("error", judge.REGRADE)
 #: The reason of an empty (0-byte) file's row: an upload that went wrong, not a notebook's fault.
-EMPTY_FILE = "the file is empty (0 bytes): ask the student to upload it again"
+EMPTY_FILE = "the file is empty (0 bytes): the upload went wrong, and the notebook must be uploaded again"
 
 
 def new_seed() -> int:
