@@ -491,6 +491,25 @@ def test_the_canvas_rubric_beside_the_import_adds_up_to_the_columns_points(round
     assert any("rubric_canvas.csv here" in n for n in result.notes)
 
 
+def test_a_notebook_of_another_problem_is_named_in_the_report(tmp_path):
+    """Problem 2's work saved under Problem 1's file name was imported with no word: the batch's
+    note on it (its metadata names problem2) now reaches the report, with the student's name."""
+    from labsupport.instructor import judge
+
+    note = judge.other_problem_note((ROOT / "notebooks" / "problem2_tracking.ipynb").read_bytes(), "problem1")
+    base = fake_grade([])
+
+    def grade(folder, spec_path, out):
+        rows = base(folder, spec_path, out)
+        rows[0]["notes"].append(note)
+        return rows
+
+    result = canvas.grade_canvas(FIXTURES / "submissions.zip", EXPORT, SPEC, tmp_path / "out", grade=grade)
+    named = [n for n in result.notes if judge.OTHER_PROBLEM_MARK in n]
+    assert len(named) == 1 and named[0].endswith(note) and ".ipynb: this notebook is problem2's" in named[0]
+    assert named[0] in (tmp_path / "out" / "report.txt").read_text(encoding="utf-8")
+
+
 def test_no_scaling_when_the_column_is_worth_the_checks(tmp_path):
     export = tmp_path / "export.csv"
     export.write_text(

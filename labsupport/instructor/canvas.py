@@ -55,6 +55,7 @@ from labsupport.instructor.gradebook import (
     read_gradebook,
     scaled_score,
 )
+from labsupport.instructor.judge import OTHER_PROBLEM_MARK
 from labsupport.instructor.outputs import (
     BATCH_RESULTS,
     CANVAS_RESULTS,
@@ -319,6 +320,9 @@ def _record_scores(
         if row.get("status") == "unreadable":
             reason = "; ".join(row.get("notes", [])[:1]) or "no reason given"
             result.unreadable.append(f"{who}: {f.original}: {reason}")
+        for note in row.get("notes", []):  # Problem 2's work under Problem 1's file name, say
+            if OTHER_PROBLEM_MARK in note:
+                result.notes.append(f"{who}: {f.original}: {note}")
         if previous and previous not in ("-", score) and decimal_point(previous) != score:
             result.replaced.append(f"{who}: replaces the grade {previous} already in Canvas with {score}")
         result.scores[user] = score

@@ -484,6 +484,10 @@ def _decode(name: str, answer: dict, call: bool = False):
 # ---------------------------------------------------------------------------------------------
 
 
+#: The words of :func:`other_problem_note` that the Canvas report looks for among a row's notes.
+OTHER_PROBLEM_MARK = "(its metadata says so)"
+
+
 def other_problem_note(text: bytes, problem: str | None) -> str | None:
     """A note when the notebook says it is another Problem's (the ``labsupport_grading`` metadata
     that the handed-out notebooks carry): a Problem 2 notebook graded with Problem 1's checks
@@ -499,7 +503,7 @@ def other_problem_note(text: bytes, problem: str | None) -> str | None:
     if problem is None or not well_formed or named == problem:
         return None  # no Problem named, this one, or a name no spec could have (never quoted)
     return (
-        f"this notebook is {named}'s (its metadata says so), graded here with {problem}'s checks: if the "
+        f"this notebook is {named}'s {OTHER_PROBLEM_MARK}, graded here with {problem}'s checks: if the "
         f"student handed in the wrong notebook, ask for the right one; else grade it with --problem {named}"
     )
 
