@@ -246,11 +246,11 @@ def carried_forbidden_code(code: CodeType) -> str | None:
 
 def _written_in_a_cell(code: CodeType) -> bool:
     """Whether ``code`` was compiled from the text of a notebook cell: IPython keeps each cell's
-    text in ``linecache`` under the name its code carries, with no modification time (it is no
-    file; a file's text, written by the notebook from data it decoded, has one), and that text
+    text in ``linecache`` under the name its code carries, a name that is no file on disk (a
+    file's text, written by the notebook from data it decoded, is not a cell's), and that text
     compiles to code with the same fingerprint."""
     entry = linecache.cache.get(code.co_filename)
-    if not (isinstance(entry, tuple) and len(entry) == 4 and entry[1] is None):
+    if not (isinstance(entry, tuple) and len(entry) == 4) or os.path.exists(code.co_filename):
         return False
     try:
         compiled = compile("".join(entry[2]), code.co_filename, "exec", dont_inherit=True)
