@@ -99,7 +99,10 @@ def keep_previous(folder: Path, names: tuple[str, ...], feedback: str | None = N
     if not earlier and not fed_back:
         return
     previous = folder / "previous"
-    keep_previous(previous, names, feedback, quiet=True) if previous.is_dir() else previous.mkdir()
+    if previous.is_dir():  # an even earlier run's: one level down
+        keep_previous(previous, names, feedback, quiet=True)
+    else:
+        previous.mkdir()
     for path in earlier:
         os.replace(path, previous / path.name)
     if fed_back:
