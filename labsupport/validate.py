@@ -22,7 +22,10 @@ def floats(value) -> np.ndarray | None:
     """``value`` as a float array, or ``None`` where NumPy cannot read it as numbers: an object,
     nested lists of unequal lengths, a Python integer too large for a float. The one place that
     knows what NumPy raises then; callers say what the value should have been. (Text NumPy reads:
-    "5" is 5.0; :func:`not_text` refuses it first.)"""
+    "5" is 5.0; :func:`not_text` refuses it first.) Complex numbers are ``None`` too: NumPy would
+    keep their real parts with a mere warning (:func:`real` says why they arise)."""
+    if is_complex(value):
+        return None
     try:
         return np.asarray(value, dtype=float)
     except (TypeError, ValueError, OverflowError):
@@ -48,6 +51,7 @@ def vector(name: str, value, shape) -> np.ndarray:
     if shape is not None:
         shape = (int(shape),) if np.ndim(shape) == 0 else tuple(int(n) for n in shape)
     not_text(name, value)
+    real(f"{name} holds", value)
     array = floats(value)
     if array is None:
         expected = "numbers" if shape is None else f"numbers of shape {shape}"

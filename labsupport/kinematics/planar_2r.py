@@ -90,6 +90,7 @@ def _q(q, name="q") -> np.ndarray:
             f"{name} must be positions, got a whole Reference (position, velocity, "
             f"acceleration): pass its position, ref.pos"
         )
+    validate.real(f"{name} holds", q)
     values = validate.floats(q)
     if values is None:
         raise ValueError(f"{name} must be numbers of shape (..., 2), got {q!r}")
