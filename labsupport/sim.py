@@ -38,6 +38,7 @@ get their own thread's messages.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import sys
 import threading
@@ -384,6 +385,13 @@ def _other_shape_hint(err: Exception) -> str:
     """Why a controller may treat MuJoCo's model or data as something else: a law of the analytic
     single joint (Task 1), which takes a ``SingleJoint``, or a ``torque(t, state)`` function."""
     text = str(err)
+    missing = getattr(err, "name", None)
+    if isinstance(err, AttributeError) and "MjModel' object has no attribute" in text and _is_data_field(missing):
+        return (
+            f". {missing} is a field of MuJoCo's data, not of its model: the law was handed the two in "
+            "the other order. simulate calls controller(model, data), and a law, like MuJoCo's own "
+            "functions, takes (model, data) in that order"
+        )
     if isinstance(err, AttributeError) and "MjModel' object has no attribute" in text:
         return (
             ". A law was handed the MuJoCo model where it expects another: the single-joint laws of "
@@ -395,6 +403,15 @@ def _other_shape_hint(err: Exception) -> str:
             "SingleJoint.simulate calls: here read the state from data.qpos and data.qvel"
         )
     return ""
+
+
+def _is_data_field(name) -> bool:
+    """Whether ``name`` is a field of ``MjData`` that ``MjModel`` lacks (``qpos``, ``qfrc_bias``),
+    and so no attribute of a single joint's model (``M``, ``m``, ``r``, ``b``, ``g``) either."""
+    from labsupport.plants import SingleJoint  # plants imports this module
+
+    single_joint = {f.name for f in dataclasses.fields(SingleJoint)}
+    return isinstance(name, str) and hasattr(mujoco.MjData, name) and name not in single_joint
 
 
 def _controller_failed(err: Exception, model: mujoco.MjModel, data: mujoco.MjData) -> Exception:
