@@ -14,6 +14,7 @@ from labsupport import actuators, book, dynamics, gains, metrics, render, sim, t
 from labsupport.controllers import single_joint
 from labsupport.controllers.operational_space import os_ct_torque
 from labsupport.grading import check, feedback
+from labsupport.kinematics import planar_2r
 from labsupport.plants import SingleJoint, load_model
 
 RAGGED = [[1.0, 2.0], [3.0]]
@@ -176,6 +177,20 @@ CASES = {
         ),
         "the single-joint laws of labsupport.controllers.single_joint take a plants.SingleJoint as their model",
     ),
+    "a controller taking (data, model)": (
+        lambda a, g: sim.simulate(*a, lambda data, model: 40.0 * (0.5 - data.qpos) - data.qvel, 0.01),
+        "qpos is a field of MuJoCo's data, not of its model: the law was handed the two in the other order",
+    ),
+    # NumPy keeps a complex number's real part with a mere warning: an IK's (1 - c**2)**0.5 went on
+    "a complex initial state": (
+        lambda a, g: sim.simulate(*a, lambda m, d: d.qfrc_bias, 0.01, q0=np.array([0.1 + 1j, 0.2])),
+        r"q0 holds complex numbers, but angles and torques are real. .*\(1 - c\*\*2\)\*\*0.5",
+    ),
+    "complex angles to the planar kinematics": (
+        lambda a, g: planar_2r.forward_kinematics(np.array([0.3 + 0.5j, 0.2])),
+        "q holds complex numbers",
+    ),
+    "a complex set point": (lambda a, g: trajectories.set_point(0.0, [0.5 + 0.1j, 0.2]), "point holds complex numbers"),
     "np.linalg.solve with the site Jacobian's six rows": (
         lambda a, g: sim.simulate(*a, lambda m, d: np.linalg.solve(dynamics.site_jacobian(m, d, 0), np.zeros(2)), 0.01),
         r"np.linalg.solve and inv take a square matrix; .* 6 rows, "
