@@ -1146,6 +1146,34 @@ def test_one_law_handed_in_for_both_earns_no_tracking_credit_for_the_copy(master
     assert grade("p2_track", seed, ct_op_torque=op, ct_ik_joint_torque=ik_ct).score == 1
 
 
+@pytest.mark.parametrize("seed", [PUBLIC_SEED, OTHER_SEED])
+def test_a_run_counts_only_for_a_law_its_formula_check_recognises(master2, seed):
+    """A function that tracks the circle but is not its law at the formula check's test states
+    earned that law's half of p2_track: OS-CT with other gains handed in as IK + joint CT, or a law
+    that answers the checks' states (never those of a run from t = 0) with anything and the run
+    with OS-CT. Its run still tracks, and the note says why it does not count."""
+    op, ik_ct = master2["ct_op_torque"], master2["ct_ik_joint_torque"]
+
+    def stiffer_op(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        return op(model, data, x_d, xd_d, xdd_d, 1.5 * Kp, 1.5 * Kd)
+
+    last = {"t": None, "run": False}
+
+    def two_faced(model, data, *ref):  # a run starts at t = 0 and steps by dt; the checks' states do not
+        step = last["t"] is not None and abs(data.time - last["t"] - model.opt.timestep) < 1e-9
+        last["run"], last["t"] = data.time == 0.0 or (last["run"] and step), data.time
+        return op(model, data, *ref) if last["run"] else np.zeros(3)
+
+    for law in (stiffer_op, two_faced):
+        track = grade("p2_track", seed, ct_op_torque=op, ct_ik_joint_torque=law)
+        assert track.score == 0.5, track
+        assert "IK+JS-CT: RMS error" in track.message and "mm, but ct_ik_joint_torque scores zero on its own" in (
+            track.message
+        ), track.message
+        assert "so this run does not count as IK + joint CT's" in track.message, track.message
+    assert grade("p2_track", seed, ct_op_torque=op, ct_ik_joint_torque=ik_ct).score == 1
+
+
 def test_a_previous_q_kept_as_a_view_of_data_is_graded_as_it_runs():
     """A finite-difference J̇q̇ whose "previous" q is ``data.qpos`` itself, not a copy: in a run
     (one MjData throughout) that q is always the current one, so J̇q̇ is zero. The in-notebook
@@ -2417,6 +2445,32 @@ def test_an_elbow_down_start_keeps_half_and_is_told_so(master2):
     q0 = master2["ik_3r"](problem2.reference(0.0).pos, elbow_up=False)
     result = grade("p2_start", q0_traj=q0)
     assert result.score == 0.5 and "but elbow down" in result.message and "elbow_up=True" in result.message, result
+
+
+def test_a_start_typed_in_counts_only_where_the_students_own_ik_gives_it(master2):
+    """q0_traj is TODO 2's answer, the IK of x0; typed in as numbers (copied, or printed by an IK the
+    Problem does not allow) it scored full marks with TODO 1 left empty. It now counts where the
+    student's own ik_3r also reaches x0, by whatever method; a borrowed ik_3r is named."""
+    x0 = problem2.reference(0.0).pos
+    q0 = master2["ik_3r"](x0, elbow_up=True)
+    for ik, words in (
+        (lambda x, elbow_up=True: None, "but ik_3r is not implemented yet"),
+        (None, "but ik_3r is not defined"),
+        (lambda x, elbow_up=True: np.zeros(3), "but your ik_3r(x0) puts it 0.5831 m from x0"),
+        (borrowed_ik, "planar_2r.inverse_kinematics is off limits"),
+    ):
+        result = grade("p2_start", q0_traj=q0, **({} if ik is None else {"ik_3r": ik}))
+        assert result.score == 0 and words in result.message, result
+        assert "the start counts when your own IK computes it: q0_traj = ik_3r(x0)" in result.message, result
+    assert grade("p2_start", q0_traj=q0, ik_3r=newton_ik).score == 1  # a numerical IK of one's own
+    # q0_traj's cell failed on the borrowed IK: the note says why, not only that q0_traj is missing
+    result = grade("p2_start", ik_3r=borrowed_ik)
+    assert result.score == 0 and "planar_2r.inverse_kinematics is off limits" in result.message, result
+
+
+def borrowed_ik(x, elbow_up=True):
+    """Problem 2's IK through Task 3's planar IK, which the Problem does not allow."""
+    return np.array([np.arctan2(x[1], x[0]), *planar_ik(np.array([np.hypot(x[0], x[1]), x[2] - 0.1]))])
 
 
 def test_a_start_off_the_circle_is_told_how_far():

@@ -52,12 +52,14 @@ from labsupport.grading.common import (
     tracking_cases,
 )
 from labsupport.grading.feedback import (
+    ForbiddenCall,
     NotImplementedYet,
     Probe,
     Result,
     StudentError,
     as_vector,
     failed,
+    forbidden_reason,
     not_implemented,
     passed,
     refused,
@@ -123,8 +125,9 @@ def check_start(probe: Probe, seed: int) -> Result:
         q0 = as_vector("q0_traj", probe.get("q0_traj"), 3, "value")
     except NotImplementedYet as err:  # set from ik_3r, it is None until Problem 1's IK is pasted in
         return refused(name, label, NotImplementedYet(f"{err}; if it is set as ik_3r(x0), {IK_NOT_PASTED}"))
-    except StudentError as err:
-        return refused(name, label, err)
+    except StudentError as err:  # q0_traj's cell failed: where ik_3r is off limits, that is why
+        borrowed = _ik_refusal(probe, reference(0.0).pos)
+        return refused(name, label, borrowed if isinstance(borrowed, ForbiddenCall) else err)
     x0 = reference(0.0).pos
     err = float(np.linalg.norm(tip(model, q0) - x0))
     with np.printoptions(precision=4, suppress=True):
@@ -144,6 +147,13 @@ def check_start(probe: Probe, seed: int) -> Result:
                     "the Problem starts elbow up (elbow_up=True).",
                     0.5,
                 )
+            not_own = _not_from_own_ik(probe, model, x0)
+            if not_own:
+                return failed(
+                    name,
+                    f"start: q0_traj puts the end effector on the start point, elbow up, but {not_own}; the start "
+                    "counts when your own IK computes it: q0_traj = ik_3r(x0), with your ik_3r of TODO 1.",
+                )
             return passed(name, "start: q0_traj puts the end effector on the circle's start point, elbow up.")
         if float(np.linalg.norm(tip(model, np.radians(q0)) - x0)) <= START_TOL:
             return failed(name, f"start: q0_traj = {q0} is in degrees; MuJoCo works in radians.")
@@ -152,6 +162,29 @@ def check_start(probe: Probe, seed: int) -> Result:
             f"start: q0_traj puts the end effector {err:.4g} m from the circle's start point {x0}; "
             "solve the IK for x_d(0).",
         )
+
+
+def _ik_refusal(probe: Probe, x0) -> StudentError | np.ndarray:
+    """The student's ``ik_3r(x0, elbow_up=True)`` as 3 angles, or the error that says why it gave none."""
+    try:
+        return as_vector("ik_3r", probe.call("ik_3r", x0, elbow_up=True), 3, "joint vector")
+    except StudentError as err:
+        return err
+
+
+def _not_from_own_ik(probe: Probe, model, x0) -> str | None:
+    """Why the student's own ``ik_3r`` does not reach the start point ``x0``, or None where it does.
+
+    ``q0_traj`` is TODO 2's answer, the IK of ``x0``; its value alone cannot tell an IK from angles
+    typed in (copied from elsewhere, or printed by an IK the Problem does not allow), so the start
+    counts only where the student's ``ik_3r`` of TODO 1 also puts the tip on ``x0``."""
+    q = _ik_refusal(probe, x0)
+    if isinstance(q, NotImplementedYet):
+        return "ik_3r is not implemented yet"
+    if isinstance(q, StudentError):
+        return forbidden_reason(q) or str(q)
+    miss = float(np.linalg.norm(tip(model, q) - x0))
+    return None if miss <= START_TOL else f"your ik_3r(x0) puts it {miss:.4g} m from x0"
 
 
 def _os_expected(T, state, x_d, xd_d, xdd_d, Kp, Kd):
@@ -584,6 +617,23 @@ def _other_laws_torque(probe: Probe, seed: int, fname: str) -> str | None:
     return None
 
 
+def _not_its_law(probe: Probe, seed: int, fname: str) -> str | None:
+    """Why a run of the student's ``fname`` that tracks the circle earns none of its law's credit,
+    or None.
+
+    A run shows how a law tracks, so it counts for the law that the law's own formula check
+    (``p2_osct``, ``p2_ikct``) finds at this seed's test states. Where that check scores zero,
+    ``fname`` is not that law there, however well it tracks: the same law with other gains, say,
+    or a function that tells the checks' states from a run's and answers them apart (the other
+    law handed in again is named before the run, by :func:`_other_laws_torque`)."""
+    check, label = {"ct_op_torque": (check_os_ct, "OS-CT"), "ct_ik_joint_torque": (check_ik_ct, "IK + joint CT")}[fname]
+    if check(probe, seed).score > 0:
+        return None
+    return (
+        f"{fname} scores zero on its own formula check, so this run does not count as {label}'s (that check says why)"
+    )
+
+
 def check_tracking(probe: Probe, seed: int) -> Result:
     """Both of the student's controllers track one turn of a seeded circle with RMS error below
     :data:`RMS_TOL`, starting on it and moving with it."""
@@ -620,7 +670,9 @@ def check_tracking(probe: Probe, seed: int) -> Result:
             continue
         err = rms_norm(log.err)
         statuses.append("ran")
-        if err < RMS_TOL:
+        if err < RMS_TOL and (other := _not_its_law(probe, seed, fname)):
+            notes.append(f"{label}: RMS error {err * 1e3:.3g} mm, but {other}")
+        elif err < RMS_TOL:
             score += 0.5
             notes.append(f"{label}: RMS error {err * 1e3:.3g} mm (needs < {RMS_TOL * 1e3:g} mm)")
         else:
