@@ -482,6 +482,11 @@ def video_html(
         )
     if frames.dtype.kind == "f" and not np.isfinite(frames).all():
         raise ValueError("frames must be finite: the video holds NaN or infinite colours")
+    if frames.dtype.kind == "f" and not 0.0 <= frames.min() <= frames.max() <= 1.0:
+        raise ValueError(
+            f"float frames hold colours from 0 to 1, got {frames.min():.4g} to {frames.max():.4g} (the video "
+            "would show them clipped, white or black): divide colours of 0 to 255 by 255, or pass them as uint8"
+        )
     fps = validate.number("fps", fps, positive=True)
     qp = validate.whole("qp", qp, 0, 51)  # H.264's range: 0 is lossless, 51 the coarsest
     require_ffmpeg()

@@ -124,6 +124,10 @@ CASES = {
         ),
         r"frames must be 8-bit colours \(uint8, 0 to 255.*got int64: convert with np.clip",
     ),
+    "video frames as floats of 0 to 255": (  # mediapy clipped them all to white, without a word
+        lambda a, g: render.video_html(np.full((2, 16, 16, 3), 200.0), 12, description="the arm traces a circle"),
+        r"float frames hold colours from 0 to 1, got 200 to 200 .*divide colours of 0 to 255 by 255",
+    ),
     "video frames not finite": (
         lambda a, g: render.video_html(np.full((2, 16, 16, 3), np.nan), 12, description="the arm traces a circle"),
         "frames must be finite: the video holds NaN",
