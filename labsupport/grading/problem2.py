@@ -52,7 +52,6 @@ from labsupport.grading.common import (
     tracking_cases,
 )
 from labsupport.grading.feedback import (
-    ForbiddenCall,
     NotImplementedYet,
     Probe,
     Result,
@@ -126,8 +125,8 @@ def check_start(probe: Probe, seed: int) -> Result:
     except NotImplementedYet as err:  # set from ik_3r, it is None until Problem 1's IK is pasted in
         return refused(name, label, NotImplementedYet(f"{err}; if it is set as ik_3r(x0), {IK_NOT_PASTED}"))
     except StudentError as err:  # q0_traj's cell failed: where ik_3r is off limits, that is why
-        borrowed = _ik_refusal(probe, reference(0.0).pos)
-        return refused(name, label, borrowed if isinstance(borrowed, ForbiddenCall) else err)
+        ik = _ik_refusal(probe, reference(0.0).pos)
+        return refused(name, label, ik if isinstance(ik, StudentError) and forbidden_reason(ik) else err)
     x0 = reference(0.0).pos
     err = float(np.linalg.norm(tip(model, q0) - x0))
     with np.printoptions(precision=4, suppress=True):
