@@ -431,7 +431,7 @@ def planar_arm_frames(
     arm,
     t=None,
     frames: np.ndarray | None = None,
-    size: tuple[int, int] = (480, 240),
+    size: tuple[int, int] = (720, 360),
     limits=None,
 ) -> np.ndarray:
     r"""RGB frames of one or more 2R arms side by side, drawn with Matplotlib.
@@ -460,7 +460,7 @@ def planar_arm_frames(
     width, height = int(width), int(height)
     if width > MAX_VIDEO_SIZE[0] or height > MAX_VIDEO_SIZE[1]:
         raise ValueError(f"size must be at most {MAX_VIDEO_SIZE[0]} x {MAX_VIDEO_SIZE[1]} pixels, got {size}")
-    dpi = 80
+    dpi = width / 6  # six inches wide at any size: the titles and the clock keep their share of the picture
     fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
     canvas = FigureCanvasAgg(fig)
     axes = fig.subplots(1, len(panels), squeeze=False)[0]
