@@ -195,9 +195,11 @@ def simulate(
     Args:
         controller: ``controller(model, data) -> tau`` with ``tau`` of shape ``(nu,)``; it reads
             the time as ``data.time``. It may return the same (preallocated) array every step.
-            It must only read the state: a first call that changes ``data.qpos`` or
-            ``data.qvel`` stops the run (:func:`state_written`); later calls are not checked,
-            which keeps the check out of the loop's cost per step.
+            It must only read the state: a call that changes ``data.qpos``, ``data.qvel`` or
+            ``data.time`` stops the run (:func:`state_written`). The calls at steps 0, 1, 2, 4,
+            8, … are checked, which keeps the check out of the loop's cost per step and still
+            finds a law that writes at every call once the arm moves (a write of a zero velocity
+            at rest changes nothing).
         q0, qdot0: initial state; they override the keyframe's when both are given.
         site: name of the end-effector site to record (and to compare with ``reference``).
         reference: ``reference(t)`` returning a :class:`~labsupport.trajectories.Reference`, whose
@@ -296,16 +298,21 @@ def simulate(
     log_before = not log_after_step
 
     said: list[str] = []  # MuJoCo's own warning messages during the run
+    checked = 0  # the next step whose controller call is checked for writes into the state: 0, 1, 2, 4, ...
     with _MUJOCO_WARNINGS.to(said):
         for k in range(nsteps):
             if split_step:
                 step1(model, data)
+            if k == checked:
+                before = data.qpos.copy(), data.qvel.copy(), data.time
             try:
                 tau = controller(model, data)
             except _CONTROLLER_ERRORS as err:
                 raise _controller_failed(err, model, data) from err
-            if k == 0 and (why := state_written(name, data, start[1], start[2])):  # once per run
-                raise ValueError(why)
+            if k == checked:
+                checked = 2 * k or 1
+                if why := state_written(name, data, *before):
+                    raise ValueError(why)
             if type(tau) is not np.ndarray or tau.shape != (nu,) or tau.dtype != np.float64:
                 tau = _as_torque(tau, nu)
             if lower is not None:
@@ -528,11 +535,23 @@ def state_changes(data: mujoco.MjData, qpos_before, qvel_before) -> list[str]:
     ]
 
 
-def state_written(name: str, data: mujoco.MjData, qpos_before: np.ndarray, qvel_before: np.ndarray) -> str | None:
+#: What to do about a controller that moved the simulation's clock (see :func:`state_written`).
+STEPPED_ADVICE = (
+    "a controller only computes the torque for the state it is handed; simulate steps the simulation "
+    "itself, once per call, so do not call mujoco.mj_step (or change data.time) inside the controller"
+)
+
+
+def state_written(
+    name: str, data: mujoco.MjData, qpos_before: np.ndarray, qvel_before: np.ndarray, time_before=None
+) -> str | None:
     """Why the controller ``name`` is stopped, if its call changed ``data.qpos`` or ``data.qvel``
-    (``qpos_before`` and ``qvel_before`` as they were before the call), else None. A controller
-    that writes into the state makes the arm jump, and the run then diverges for a reason no gain
-    explains. Most often an array that shares memory with the state was changed in place."""
+    (``qpos_before`` and ``qvel_before`` as they were before the call), or ``data.time`` (where
+    ``time_before`` is given), else None. A controller that writes into the state makes the arm
+    jump, and the run then diverges for a reason no gain explains. Most often an array that shares
+    memory with the state was changed in place; one that moved the clock stepped the simulation."""
+    if time_before is not None and data.time != time_before:
+        return f"{name} moved data.time from {time_before:.4f} s to {data.time:.4f} s; {STEPPED_ADVICE}"
     changed = state_changes(data, qpos_before, qvel_before)
     if not changed:
         return None

@@ -528,6 +528,25 @@ def test_a_controller_that_changes_the_state_is_named_before_the_arm_jumps(arm, 
         ):
             sim.simulate(model, data, law, 1.0, q0=[0.1, 0.2], qdot0=[0.3, 0.0], split_step=split_step)
 
+    def halves_its_speed(model, data):  # at rest the write changes nothing: it shows once the arm moves
+        v = data.qvel
+        v *= 0.5
+        return 40.0 * (q_d - data.qpos) - v
+
+    with pytest.raises(
+        ValueError, match=r"halves_its_speed changed data.qvel, the arm's own state, at t = 0.00[24]0 s"
+    ):
+        sim.simulate(model, data, halves_its_speed, 1.0, q0=[0.1, 0.2], split_step=split_step)
+
+    def steps_itself(model, data):  # the lab's loop copied into the controller
+        mujoco.mj_step(model, data)
+        return 10.0 * (q_d - data.qpos) - 1.0 * data.qvel
+
+    with pytest.raises(
+        ValueError, match=r"steps_itself moved data.time from 0.0000 s to 0.0020 s; .*do not call mujoco.mj_step"
+    ):
+        sim.simulate(model, data, steps_itself, 1.0, q0=[0.1, 0.2], split_step=split_step)
+
     def borrows_data_and_puts_it_back(model, data):  # a controller may evaluate another state, and restore this one
         q = data.qpos.copy()
         data.qpos[:] = q_d

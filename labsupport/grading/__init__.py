@@ -127,8 +127,9 @@ class StudentController:
         if self.before[0].shape != data.qpos.shape or self.before[1].shape != data.qvel.shape:
             self.before = (np.empty_like(data.qpos), np.empty_like(data.qvel))  # once per model
         self.before[0][:], self.before[1][:] = data.qpos, data.qvel
+        time = data.time
         tau = self.fn(model, data, *extra)
-        if why := state_written(self.name, data, *self.before):
+        if why := state_written(self.name, data, *self.before, time):
             raise StudentError(why)
         return as_vector(self.name, tau, model.nu, "torque")
 
