@@ -1891,6 +1891,36 @@ def test_a_run_whose_law_raised_says_it_once_with_the_students_line(capsys):
     )
 
 
+def test_a_law_that_changes_its_target_in_place_leaves_the_notebooks_target_as_it_was(capsys):
+    """``q_d -= data.qpos`` in a law run through ``as_controller`` changed the notebook's own
+    ``q_des`` (to [61.9, -107.6, 175.8] after the PD run), and the later runs silently used that;
+    the run diverged with advice about gains and signs. The law is handed read-only views: it
+    stops at that line, says why, and ``q_des`` keeps its value, as do arrays a moving reference
+    hands it."""
+    from labsupport.grading import as_controller, attempt
+    from labsupport.plants import load_model
+    from labsupport.sim import simulate
+
+    model, data = load_model("spatial_3r")
+    q_des = np.array([0.3, 0.4, -0.5])
+    kept = q_des.copy()
+
+    def pd_torque(model, data, q_d, Kp, Kd):
+        q_d -= data.qpos
+        return Kp * q_d - Kd * data.qvel
+
+    for args in ((q_des, 400.0, 50.0), (lambda t: (q_des, 400.0, 50.0),)):
+        ctrl = as_controller(pd_torque, *args)
+        assert attempt("PD", lambda c=ctrl: simulate(model, data, c, 0.5, q0=problem1.Q0), ctrl, model) is None
+        said = capsys.readouterr().out
+        assert said.startswith(
+            "PD: skipped, the controller raised ValueError at t = 0.0000 s: output array is read-only"
+        )
+        assert "The law changed an array it was handed in place" in said and "e = q_d - data.qpos" in said, said
+        np.testing.assert_array_equal(q_des, kept)
+        assert q_des.flags.writeable  # the notebook's own array stays its own
+
+
 def test_a_law_that_writes_into_the_arms_state_is_told_so_not_that_it_diverged(capsys):
     """``e = data.qpos; e -= q_d`` gives the right torque at every test state (the checks pass
     copies), but in the notebook's run it moved the arm itself, which then diverged with the
