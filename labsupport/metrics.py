@@ -4,6 +4,8 @@ closed-form second-order step response they are checked against, and the measure
 
 from __future__ import annotations
 
+import warnings
+
 import mujoco
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
@@ -105,7 +107,23 @@ def overshoot(y, final: float, initial: float) -> float:
     span = validate.number("final", final) - validate.number("initial", initial)
     if span == 0:
         raise ValueError("final and initial are equal: a step of zero size has no overshoot")
+    _warn_swapped(y, final, initial)
     return max(0.0, 100.0 * float(np.max((y - final) / span)))
+
+
+def _warn_swapped(y: np.ndarray, final: float, initial: float) -> None:
+    """A ``RuntimeWarning`` where the response starts nearer ``final`` than ``initial`` and ends
+    nearer ``initial``: the two given the other way round (the order is ``final, initial``) gave
+    an overshoot of 0 and a settling time of NaN, numbers that look like a result. (A record that
+    starts already near ``final`` and stays there is a response that has settled.)"""
+    if abs(y[0] - final) < abs(y[0] - initial) and abs(y[-1] - initial) < abs(y[-1] - final):
+        warnings.warn(
+            f"the response goes from {y[0]:.4g} to {y[-1]:.4g}, from near final = {final:.4g} to near "
+            f"initial = {initial:.4g}: are the two swapped? The order is (y, final, initial), final being "
+            "the value it steps to",
+            RuntimeWarning,
+            stacklevel=3,
+        )
 
 
 def settling_time(t, y, final: float, initial: float, band: float = 0.02) -> float:
@@ -118,6 +136,7 @@ def settling_time(t, y, final: float, initial: float, band: float = 0.02) -> flo
     band = validate.band(band)
     if final == initial:
         raise ValueError("final and initial are equal: a step of zero size has no settling time")
+    _warn_swapped(y, final, initial)
     outside = np.abs(y - final) > band * abs(final - initial)
     if not outside.any():
         return float(t[0])

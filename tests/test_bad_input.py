@@ -6,6 +6,8 @@ too large for a float, nested lists of unequal lengths, a wrong shape, or a valu
 kind: the helpers' own checks had missed them.
 """
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -308,3 +310,21 @@ def test_a_check_whose_numpy_was_replaced_says_so_instead_of_drawing_forever(mon
         grading.check("p2_osct", {"ct_op_torque": lambda *args: np.zeros(3)})
     with pytest.raises(RuntimeError, match=f"drew {common.DRAW_TRIES:,} configurations"):
         common.draw_configuration(np.random.default_rng(0))
+
+
+def test_a_step_response_given_final_and_initial_swapped_is_warned_about():
+    """overshoot(y, initial, final) gave 0 % and settling_time NaN, numbers that look like results;
+    a response that starts nearer ``final`` than ``initial`` is warned about, and one given the right
+    way round is not."""
+    t = np.linspace(0.0, 5.0, 501)
+    y = 0.2 + 0.5 * metrics.second_order_step(t, 3.0, 0.5)  # from 0.2 to 0.7
+    with pytest.warns(
+        RuntimeWarning, match=r"goes from 0.2 to 0.69\d*, from near final = 0.2 to near initial = 0.7: are the two swapped"
+    ):
+        assert metrics.overshoot(y, 0.2, 0.7) == 0.0
+    with pytest.warns(RuntimeWarning, match="are the two swapped"):
+        metrics.settling_time(t, y, 0.2, 0.7)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert abs(metrics.overshoot(y, 0.7, 0.2) - 16.30) < 0.01
+        assert 2.0 < metrics.settling_time(t, y, 0.7, 0.2) < 3.0
