@@ -12,6 +12,7 @@ Computed torque cancels :math:`M` and :math:`b`, so its gains act on a unit mass
 
 from __future__ import annotations
 
+import warnings
 from typing import NamedTuple
 
 import numpy as np
@@ -103,6 +104,13 @@ def damping_for_overshoot(percent_overshoot: float) -> float:
     os = validate.number("percent_overshoot", percent_overshoot)
     if not 0 < os < 100:
         raise ValueError(f"percent_overshoot must be in (0, 100), got {percent_overshoot!r}")
+    if os < 1:  # a fraction (0.1 for 10 %), as band= takes it, reads as a tenth of a percent here
+        warnings.warn(
+            f"percent_overshoot = {os:g} asks for {os:g} %, a nearly critically damped joint; it is a "
+            f"percentage: {100 * os:g} for {100 * os:g} %",
+            RuntimeWarning,
+            stacklevel=2,
+        )
     ln = np.log(os / 100)
     return float(-ln / np.sqrt(np.pi**2 + ln**2))
 

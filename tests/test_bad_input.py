@@ -319,7 +319,8 @@ def test_a_step_response_given_final_and_initial_swapped_is_warned_about():
     t = np.linspace(0.0, 5.0, 501)
     y = 0.2 + 0.5 * metrics.second_order_step(t, 3.0, 0.5)  # from 0.2 to 0.7
     with pytest.warns(
-        RuntimeWarning, match=r"goes from 0.2 to 0.69\d*, from near final = 0.2 to near initial = 0.7: are the two swapped"
+        RuntimeWarning,
+        match=r"goes from 0.2 to 0.69\d*, from near final = 0.2 to near initial = 0.7: are the two swapped",
     ):
         assert metrics.overshoot(y, 0.2, 0.7) == 0.0
     with pytest.warns(RuntimeWarning, match="are the two swapped"):
@@ -328,3 +329,16 @@ def test_a_step_response_given_final_and_initial_swapped_is_warned_about():
         warnings.simplefilter("error")
         assert abs(metrics.overshoot(y, 0.7, 0.2) - 16.30) < 0.01
         assert 2.0 < metrics.settling_time(t, y, 0.7, 0.2) < 3.0
+
+
+def test_an_overshoot_given_as_a_fraction_is_warned_about():
+    """spec_gains(M, b, 0.1, 2.0), meant as 10 %, designed for 0.1 % (ζ = 0.91) without a word;
+    band= takes fractions, so the two conventions are easy to mix up."""
+    with pytest.warns(
+        RuntimeWarning, match=r"percent_overshoot = 0.1 asks for 0.1 %.* it is a percentage: 10 for 10 %"
+    ):
+        _, design = gains.spec_gains(0.5, 0.1, 0.1, 2.0)
+    assert design.zeta > 0.9
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert abs(gains.spec_gains(0.5, 0.1, 10.0, 2.0)[1].zeta - 0.591) < 1e-3
