@@ -436,12 +436,6 @@ def _controller_failed(err: Exception, model: mujoco.MjModel, data: mujoco.MjDat
             "out or folded (keep the target inside the workspace, away from its edge), or a matrix of data whose "
             "state was set without mj_forward (on a scratch MjData: mj_kinematics, then mj_comPos)"
         )
-    if "read-only" in str(err):
-        message += (
-            ". The law changed an array it was handed in place (q_d -= data.qpos, Kp *= 2): the target and the "
-            "gains are the notebook's own values, which a law only reads; compute new arrays, "
-            "e = q_d - data.qpos"
-        )
     message += dynamics.full_m_advice(message) + _other_shape_hint(err)
     if "shape" in message or isinstance(err, IndexError):
         message += (

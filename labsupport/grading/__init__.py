@@ -109,7 +109,7 @@ class StudentController:
     a bad torque. ``args`` may also be a single function of the time returning the tuple."""
 
     def __init__(self, fn: Callable, *args):
-        self.fn, self.args = fn, args if len(args) == 1 and callable(args[0]) else read_only(args)
+        self.fn, self.args = fn, args
         self.name = controller_name(fn)
         self.moving = len(args) == 1 and callable(args[0])
         self.trace = Trace()  # the states of the last run, to explain a divergence
@@ -123,7 +123,7 @@ class StudentController:
         """The student's torque at ``data``, checked (nothing recorded). A law that writes into
         the arm's state (``e = data.qpos; e -= q_d``) is stopped with that reason: the run would
         otherwise go on from a state the law made up, and diverge as if its signs were wrong."""
-        extra = read_only(self.args[0](float(data.time))) if self.moving else self.args
+        extra = copies(self.args[0](float(data.time)) if self.moving else self.args)
         if self.before[0].shape != data.qpos.shape or self.before[1].shape != data.qvel.shape:
             self.before = (np.empty_like(data.qpos), np.empty_like(data.qvel))  # once per model
         self.before[0][:], self.before[1][:] = data.qpos, data.qvel
@@ -134,18 +134,12 @@ class StudentController:
         return as_vector(self.name, tau, model.nu, "torque")
 
 
-def read_only(args) -> tuple:
-    """``args`` with each NumPy array replaced by a read-only view of it: a law handed the
-    notebook's own target or gains (``q_des``) and changing them in place (``q_d -= data.qpos``)
-    would change them for every later cell; it now raises at that line, and the run says why
-    (:func:`labsupport.sim.simulate`)."""
-    return tuple(_read_only_view(a) if isinstance(a, np.ndarray) else a for a in args)
-
-
-def _read_only_view(array: np.ndarray) -> np.ndarray:
-    view = array.view()
-    view.flags.writeable = False
-    return view
+def copies(args) -> tuple:
+    """``args`` with each NumPy array copied, for one call of a law. A law may work in place on
+    what it is handed (``q_d -= data.qpos``), as the checks allow; handed the notebook's own
+    target, it changed ``q_des`` for every later cell, and the run went astray from a target the
+    student never set."""
+    return tuple(a.copy() if isinstance(a, np.ndarray) else a for a in args)
 
 
 def as_controller(fn: Callable, *args) -> StudentController:
