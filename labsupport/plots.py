@@ -109,6 +109,18 @@ def _logged(runs, site: bool = False, reference: bool = False) -> Mapping[str, o
     return runs
 
 
+def _joints(runs: Mapping[str, object], count: int, instead: str) -> Mapping[str, object]:
+    """``runs`` (checked by :func:`_logged`) if every run's arm has ``count`` joints, else a
+    ``ValueError`` naming the run and what to do ``instead`` (the figure would drop joints)."""
+    for label, run in runs.items():
+        if np.ndim(run.q) != 2 or np.shape(run.q)[1] != count:
+            raise ValueError(
+                f"run {label!r}: this figure draws a {count}-joint arm's runs, one column of q per joint, but the "
+                f"log's q has shape {np.shape(run.q)}: {instead}"
+            )
+    return runs
+
+
 def _styled(runs: Mapping[str, object]) -> list[tuple[str, object, str, str]]:
     """``(label, run, line style, colour)`` of each run: its colour is ``C0``, ``C1``, ... by its
     place, so a run keeps its colour in every panel, whatever else a panel draws first (a
@@ -125,6 +137,27 @@ def _points(ax, x, y, fmt: str, **kwargs) -> None:
     ``plot`` does not override a cycle's value)."""
     (line,) = ax.plot(x, y, fmt, **kwargs)
     line.set_markevery(None)
+
+
+def _one_joint(runs) -> Mapping[str, object]:
+    """``runs`` if each is the ``sim.Log`` of a one-joint arm, else a ``ValueError`` naming the run."""
+    return _joints(_logged(runs), 1, "plot each joint of a larger arm yourself, e.g. ax.plot(log.t, log.q[:, j])")
+
+
+def _level(level) -> tuple[str, float]:
+    """``level`` as ``(label, value)``, text then a number, else a ``ValueError`` that gives the order."""
+    text, value = level if isinstance(level, (tuple, list)) and len(level) == 2 else (None, None)
+    if not isinstance(text, str):
+        raise ValueError(
+            "level must be a pair (label, value), the label first, such as ('target', theta_d); "
+            f"got {validate.short(level)}"
+        )
+    return text, validate.number("level's value", value)
+
+
+def _limit(limit) -> float | None:
+    """``limit`` as a positive number (an actuator's torque limit), or ``None``; else a ``ValueError``."""
+    return None if limit is None else validate.number("limit (the torque limit in N·m)", limit, positive=True)
 
 
 def single_joint_panel(
@@ -153,17 +186,15 @@ def single_joint_panel(
     if quantity == "error" and reference is None:
         raise ValueError("an error panel needs the reference: pass reference=<function of t>")
     ylabel, read = SINGLE_JOINT_QUANTITIES[quantity]
-    first = next(iter(_runs(runs).values()))
+    runs, level, limit = _one_joint(runs), None if level is None else _level(level), _limit(limit)
+    first = next(iter(runs.values()))
     if reference is not None and quantity == "angle":
         desired = np.degrees(_desired_angle(reference, first.t))
         ax.plot(first.t, desired, color="0.6", lw=REFERENCE_WIDTH, alpha=0.6, label="desired")
     for label, log, style, color in _styled(runs):
         ax.plot(log.t, read(log, reference), style, color=color, label=label)
     if level is not None:
-        try:
-            text, value = level
-        except (TypeError, ValueError):
-            raise ValueError(f"level must be a pair (label, value), got {validate.short(level)}") from None
+        text, value = level
         value = np.degrees(value) if quantity in ("angle", "rate") else value
         ax.axhline(value, color="gray", ls=":")
         # named above the line's left end, where the runs start away from it (as a legend entry
@@ -212,6 +243,8 @@ def single_joint_figure(
     if not n:
         raise ValueError(f"name at least one quantity to plot, from {list(SINGLE_JOINT_QUANTITIES)}")
     side_by_side = validate.flag("side_by_side", side_by_side)
+    # checked before the figure is made, which would otherwise stay open, empty, under the error
+    runs, level, limit = _one_joint(runs), None if level is None else _level(level), _limit(limit)
     shape, height = ((1, n), 3.4) if side_by_side else ((n, 1), 1.1 + 1.8 * n)
     fig, axes = _figure(height, *shape, sharex=not side_by_side)
     axes = axes.ravel()
@@ -238,6 +271,28 @@ def single_joint_figure(
 SIMULATION_MARKS = 13
 
 
+def _curves(title, curves) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The curves of the panel ``title`` of :func:`closed_form_figure`, each as three float arrays
+    of one length, or a ``ValueError`` naming the panel and the curve."""
+    if not isinstance(curves, Mapping) or not curves:
+        raise ValueError(
+            f"panel {title!r} must map each curve's label to (t, closed_form, simulated), got {validate.short(curves)}"
+        )
+    checked = {}
+    for label, curve in curves.items():
+        arrays = [validate.floats(a) for a in curve] if isinstance(curve, (tuple, list)) else []
+        shapes = [None if a is None else a.shape for a in arrays]
+        n = shapes[0][0] if shapes and shapes[0] else 0
+        if not n or shapes != [(n,)] * 3:
+            raise ValueError(
+                f"panel {title!r}, curve {label!r}: each curve is (t, closed_form, simulated), three 1-D arrays of "
+                "equal lengths, such as (log.t, closed, log.qdot[:, 0]); got "
+                + (f"arrays of shapes {shapes}" if shapes else validate.short(curve))
+            )
+        checked[label] = tuple(arrays)
+    return checked
+
+
 def closed_form_figure(panels: Mapping[str, Mapping[str, tuple]], ylabel: str):
     """Simulations (hollow circles at :data:`SIMULATION_MARKS` evenly spread samples) on top of
     their closed forms (lines), one panel per title; each panel maps a label to
@@ -245,12 +300,13 @@ def closed_form_figure(panels: Mapping[str, Mapping[str, tuple]], ylabel: str):
     curve for the legends, which name the markers too."""
     if not isinstance(panels, Mapping) or not panels:
         raise ValueError(f"panels must map each panel's title to its curves, got {validate.short(panels)}")
+    panels = {title: _curves(title, curves) for title, curves in panels.items()}
     fig, axes = _figure(3.6, 1, len(panels), sharey=True)
     for ax, (title, curves) in zip(axes[0], panels.items(), strict=True):
         for label, (t, closed_form, simulated), style, color in _styled(curves):
             ax.plot(t, closed_form, style, color=color, label=label)
             marks = np.unique(np.linspace(0, len(t) - 1, SIMULATION_MARKS).round().astype(int))
-            _points(ax, np.asarray(t)[marks], np.asarray(simulated)[marks], "o", ms=5, color=color, mfc="none")
+            _points(ax, t[marks], simulated[marks], "o", ms=5, color=color, mfc="none")
         _points(ax, [], [], "o", ms=5, color="0.3", mfc="none", label="simulated (circles)")
         ax.set(title=title, xlabel="time [s]")
         ax.grid(True, alpha=0.4)
@@ -268,15 +324,29 @@ def _workspace(ax, reach_min: float, reach_max: float):
         ax.plot(radius * np.cos(phi), radius * np.sin(phi), "k--", lw=0.8, alpha=0.25)
 
 
+def _reach(reach) -> tuple[float, float]:
+    """``reach`` as the workspace's radii ``(reach_min, reach_max)``, smallest first, else a ``ValueError``."""
+    what = "reach is the workspace's inner and outer radius in m, smallest first: pass (arm.reach_min, arm.reach_max)"
+    try:
+        low, high = validate.vector("reach", reach, (2,))
+    except ValueError as err:
+        raise ValueError(f"{err}; {what}") from None
+    if not 0 <= low <= high:
+        raise ValueError(f"{what}; got {validate.short(reach)}")
+    return low, high
+
+
 def reaching_figure(runs: Mapping[str, object], q_d, target, reach: tuple[float, float]):
     r"""Task 3.1's six panels for several runs (``sim.Log`` with ``ee``), three rows of two
     that fit a page's text column at full size: the two joint errors
     :math:`q_{d,j} - q_j` (desired minus actual) in degrees, the two joint torques, then the
     end-effector path and the distance to the target in millimetres.
     """
-    runs = _logged(runs, site=True)
-    fig, axes = _figure(10.0, 3, 2)
+    runs = _joints(_logged(runs, site=True), 2, "pass the runs of the planar 2R arm")
+    q_d = validate.vector("q_d (the desired joint angles [q1, q2] in rad)", q_d, (2,))
     target = validate.vector("target (x, y)", target, (2,))
+    reach = _reach(reach)
+    fig, axes = _figure(10.0, 3, 2)
     for j in range(2):
         ax = axes[0, j]
         for label, log, style, color in _styled(runs):
@@ -310,19 +380,26 @@ def reaching_figure(runs: Mapping[str, object], q_d, target, reach: tuple[float,
     return fig
 
 
+def _desired_path(desired_path) -> np.ndarray:
+    """``desired_path`` as an ``(N, 2)`` float array of finite points, else a ``ValueError`` (one of
+    shape ``(2, N)`` would draw a "circle" of two points: it says to transpose it)."""
+    path = validate.floats(desired_path)
+    if path is None or path.ndim != 2 or path.shape[1] != 2:
+        transposed = path is not None and path.ndim == 2 and path.shape[0] == 2
+        raise ValueError(
+            "desired_path must be the circle's points, an (N, 2) array such as reference(t).pos, got "
+            + (f"shape {path.shape}: transpose it (desired_path.T)" if transposed else validate.short(desired_path))
+        )
+    return validate.vector("desired_path", desired_path, path.shape)
+
+
 def circle_tracking_figure(runs: Mapping[str, object], desired_path):
     r"""Task 3.2's three panels for several runs (``sim.Log`` with ``ee`` and ``err``), sized to
     the text column: on the left the path against the desired circle; on the right, stacked,
     the norm of the Cartesian error in millimetres and the joint torques.
     """
-    runs = _logged(runs, site=True, reference=True)
-    path = validate.floats(desired_path)
-    if path is None or path.ndim != 2 or path.shape[1] < 2:
-        raise ValueError(
-            "desired_path must be the circle's points, an (N, 2) array such as reference(t).pos, "
-            f"got {validate.short(desired_path)}"
-        )
-    desired_path = path
+    runs = _joints(_logged(runs, site=True, reference=True), 2, "pass the runs of the planar 2R arm")
+    desired_path = _desired_path(desired_path)
     fig, axes = plt.subplot_mosaic(
         [["path", "error"], ["path", "torques"]], figsize=(column_width(), 6.0), layout="constrained"
     )

@@ -247,11 +247,12 @@ def test_the_shared_figures_fit_the_text_column(name, dpi):
 
     t = np.linspace(0.0, 1.0, 11)
     log = dataclasses.replace(_log(t, 0.1, 2), err=np.zeros((t.size, 2)))
+    one = _log(t, 0.1, 1)  # the single joint's figures take one-joint logs
     make = {
         "reaching": lambda: plots.reaching_figure({"PD": log}, [0.0, 0.0], [0.5, 0.5], (0.1, 1.0)),
         "circle": lambda: plots.circle_tracking_figure({"OS-CT": log, "IK": log}, log.ee[:, :2]),
-        "side_by_side": lambda: plots.single_joint_figure({"a": log}, ["angle", "torque"], side_by_side=True),
-        "stacked": lambda: plots.single_joint_figure({"a": log}, ["angle", "rate", "torque"]),
+        "side_by_side": lambda: plots.single_joint_figure({"a": one}, ["angle", "torque"], side_by_side=True),
+        "stacked": lambda: plots.single_joint_figure({"a": one}, ["angle", "rate", "torque"]),
         "closed_form": lambda: plots.closed_form_figure({"p": {"a": (t, t, t)}, "q": {"b": (t, t, t)}}, "y"),
     }
     with plt.rc_context({"figure.dpi": dpi}):
