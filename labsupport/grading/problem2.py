@@ -125,7 +125,7 @@ def check_start(probe: Probe, seed: int) -> Result:
     except NotImplementedYet as err:  # set from ik_3r, it is None until Problem 1's IK is pasted in
         return refused(name, label, NotImplementedYet(f"{err}; if it is set as ik_3r(x0), {IK_NOT_PASTED}"))
     except StudentError as err:  # q0_traj's cell failed: where ik_3r is off limits, that is why
-        ik = _ik_refusal(probe, reference(0.0).pos)
+        ik = _own_ik_answer(probe, reference(0.0).pos)
         return refused(name, label, ik if isinstance(ik, StudentError) and forbidden_reason(ik) else err)
     x0 = reference(0.0).pos
     err = float(np.linalg.norm(tip(model, q0) - x0))
@@ -163,7 +163,7 @@ def check_start(probe: Probe, seed: int) -> Result:
         )
 
 
-def _ik_refusal(probe: Probe, x0) -> StudentError | np.ndarray:
+def _own_ik_answer(probe: Probe, x0) -> StudentError | np.ndarray:
     """The student's ``ik_3r(x0, elbow_up=True)`` as 3 angles, or the error that says why it gave none."""
     try:
         return as_vector("ik_3r", probe.call("ik_3r", x0, elbow_up=True), 3, "joint vector")
@@ -177,7 +177,7 @@ def _not_from_own_ik(probe: Probe, model, x0) -> str | None:
     ``q0_traj`` is TODO 2's answer, the IK of ``x0``; its value alone cannot tell an IK from angles
     typed in (copied from elsewhere, or printed by an IK the Problem does not allow), so the start
     counts only where the student's ``ik_3r`` of TODO 1 also puts the tip on ``x0``."""
-    q = _ik_refusal(probe, x0)
+    q = _own_ik_answer(probe, x0)
     if isinstance(q, NotImplementedYet):
         return "ik_3r is not implemented yet"
     if isinstance(q, StudentError):
