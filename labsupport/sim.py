@@ -159,6 +159,21 @@ def reset(
         mujoco.mj_forward(model, data)
 
 
+def _warn_state_set_by_hand(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    """A ``RuntimeWarning`` where ``data`` holds, at time 0, a position other than the model's
+    ``qpos0``: a state set by hand (``data.qpos[:] = ...``) or by a keyframe, which a run without
+    ``q0`` or a keyframe does not start from (it resets first). After a run the time is past 0,
+    so the next run, which starts afresh from ``qpos0`` as documented, is not warned about."""
+    if data.time == 0 and not np.array_equal(data.qpos, model.qpos0):
+        warnings.warn(
+            f"data holds qpos = {validate.short(data.qpos)} at time 0 (set by hand, by a keyframe, or by a run "
+            f"stopped at its first step), but simulate starts from the model's qpos0 = {validate.short(model.qpos0)} "
+            "at rest unless it is given q0 (and qdot0) or a keyframe: pass q0=data.qpos.copy() to start where data is",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+
+
 def step_count(duration: float, dt: float, lab_timing: bool = False) -> int:
     """Number of steps of a run: ``round(duration / dt)``, or with ``lab_timing`` as many as the
     lab's ``while data.time < duration`` loop takes (time accumulated step by step in floating
@@ -260,6 +275,8 @@ def simulate(
             "split_step needs the Euler or an implicit integrator: mj_step1/mj_step2 "
             "cannot split an RK4 step; use the default stepping with RK4"
         )
+    if q0 is None and keyframe is None:
+        _warn_state_set_by_hand(model, data)
     reset(model, data, q0, qdot0, keyframe=keyframe, forward=not lab_timing)
     site_id = -1 if site is None else dynamics.site_id(model, site)
     if reference is not None:  # checked before the run, which would otherwise be lost to it

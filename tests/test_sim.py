@@ -861,3 +861,23 @@ def test_a_ctrlrange_on_some_motors_bounds_those_alone():
         warnings.simplefilter("error")  # the limit is tighter than a's range: the limit's doing, no warning
         log = sim.simulate(model, data, constant([-5.0, -50.0]), 10 * model.opt.timestep, torque_limit=0.5)
     np.testing.assert_array_equal(log.tau, np.tile([-0.5, -0.5], (10, 1)))
+
+
+def test_a_state_set_by_hand_that_a_run_would_not_start_from_is_warned_about(arm):
+    """``data.qpos[:] = [0.7, 0.4]`` then ``simulate`` without ``q0``: the run started from qpos0 at
+    rest without a word. Now a warning says where it starts and how to start where data is. A run
+    given q0, and the run after a run (the time is then past 0; it starts afresh, as documented),
+    are not warned about."""
+    model, data = arm
+    hold = lambda m, d: d.qfrc_bias.copy()  # noqa: E731
+    mujoco.mj_resetData(model, data)
+    data.qpos[:] = [0.7, 0.4]
+    with pytest.warns(RuntimeWarning, match=r"data holds qpos = \[0.7 0.4\] at time 0 .*pass q0=data.qpos.copy\(\)"):
+        log = sim.simulate(model, data, hold, 0.01)
+    np.testing.assert_array_equal(log.q[0], model.qpos0)  # what the warning says
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sim.simulate(model, data, hold, 0.01)  # after a run
+        mujoco.mj_resetData(model, data)
+        data.qpos[:] = [0.7, 0.4]
+        assert sim.simulate(model, data, hold, 0.01, q0=data.qpos.copy()).q[0].tolist() == [0.7, 0.4]
