@@ -1920,6 +1920,23 @@ def test_a_law_that_changes_its_target_in_place_leaves_the_notebooks_target_as_i
         assert np.linalg.norm(log.q[-1] - q_des) < 1e-3  # it reached the target it was given
 
 
+def test_a_moving_reference_that_returns_one_array_hands_it_whole():
+    """``as_controller(law, lambda t: q_d(t))`` with ``law(model, data, q_d)``: the array the
+    function returned was spread into three arguments, and the law failed on their number."""
+    from labsupport.grading import as_controller
+    from labsupport.plants import load_model
+    from labsupport.sim import simulate
+
+    model, data = load_model("spatial_3r")
+    target = np.array([0.3, 0.4, -0.5])
+
+    def hold(model, data, q_d):
+        return mass_matrix(model, data) @ (100.0 * (q_d - data.qpos) - 20.0 * data.qvel) + bias_forces(data)
+
+    log = simulate(model, data, as_controller(hold, lambda t: target), 1.0, q0=problem1.Q0)
+    assert np.linalg.norm(log.q[-1] - target) < 1e-3
+
+
 def test_a_law_that_writes_into_the_arms_state_is_told_so_not_that_it_diverged(capsys):
     """``e = data.qpos; e -= q_d`` gives the right torque at every test state (the checks pass
     copies), but in the notebook's run it moved the arm itself, which then diverged with the

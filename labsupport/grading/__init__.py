@@ -106,7 +106,9 @@ def cpu_note(who: str, seconds: float, share: float = 1.0) -> str:
 class StudentController:
     """A student's ``fn(model, data, *args)`` as a controller ``(model, data) -> tau`` for
     :func:`labsupport.sim.simulate`, which says plainly when ``fn`` is not implemented or returns
-    a bad torque. ``args`` may also be a single function of the time returning the tuple."""
+    a bad torque. ``args`` may also be a single function of the time returning the tuple or
+    list of them, or one value, the law's only argument after ``data`` (an array is passed
+    whole, not spread)."""
 
     def __init__(self, fn: Callable, *args):
         self.fn, self.args = fn, args
@@ -123,7 +125,8 @@ class StudentController:
         """The student's torque at ``data``, checked (nothing recorded). A law that writes into
         the arm's state (``e = data.qpos; e -= q_d``) is stopped with that reason: the run would
         otherwise go on from a state the law made up, and diverge as if its signs were wrong."""
-        extra = copies(self.args[0](float(data.time)) if self.moving else self.args)
+        extra = self.args[0](float(data.time)) if self.moving else self.args
+        extra = copies(extra if isinstance(extra, (tuple, list)) else (extra,))
         if self.before[0].shape != data.qpos.shape or self.before[1].shape != data.qvel.shape:
             self.before = (np.empty_like(data.qpos), np.empty_like(data.qvel))  # once per model
         self.before[0][:], self.before[1][:] = data.qpos, data.qvel
