@@ -560,14 +560,14 @@ STEPPED_ADVICE = (
 
 
 def state_written(
-    name: str, data: mujoco.MjData, qpos_before: np.ndarray, qvel_before: np.ndarray, time_before=None
+    name: str, data: mujoco.MjData, qpos_before: np.ndarray, qvel_before: np.ndarray, time_before: float
 ) -> str | None:
-    """Why the controller ``name`` is stopped, if its call changed ``data.qpos`` or ``data.qvel``
-    (``qpos_before`` and ``qvel_before`` as they were before the call), or ``data.time`` (where
-    ``time_before`` is given), else None. A controller that writes into the state makes the arm
-    jump, and the run then diverges for a reason no gain explains. Most often an array that shares
-    memory with the state was changed in place; one that moved the clock stepped the simulation."""
-    if time_before is not None and data.time != time_before:
+    """Why the controller ``name`` is stopped, if its call changed ``data.qpos``, ``data.qvel`` or
+    ``data.time`` (``qpos_before``, ``qvel_before`` and ``time_before`` as they were before the
+    call), else None. A controller that writes into the state makes the arm jump, and the run
+    then diverges for a reason no gain explains. Most often an array that shares memory with the
+    state was changed in place; one that moved the clock stepped the simulation."""
+    if data.time != time_before:
         return f"{name} moved data.time from {time_before:.4f} s to {data.time:.4f} s; {STEPPED_ADVICE}"
     changed = state_changes(data, qpos_before, qvel_before)
     if not changed:
