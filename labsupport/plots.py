@@ -144,6 +144,18 @@ def _one_joint(runs) -> Mapping[str, object]:
     return _joints(_logged(runs), 1, "plot each joint of a larger arm yourself, e.g. ax.plot(log.t, log.q[:, j])")
 
 
+def _planar_2r(runs, reference: bool = False) -> Mapping[str, object]:
+    """``runs`` if each is a ``sim.Log`` of the planar 2R arm with its site (and, with
+    ``reference``, its reference) logged, else a ``ValueError`` naming the run."""
+    return _joints(_logged(runs, site=True, reference=reference), 2, "pass the runs of the planar 2R arm")
+
+
+def _single_joint_options(runs, level, limit) -> tuple:
+    """``runs``, ``level`` and ``limit`` of the single-joint plots, checked (see :func:`_one_joint`,
+    :func:`_level`, :func:`_limit`)."""
+    return _one_joint(runs), None if level is None else _level(level), _limit(limit)
+
+
 def _level(level) -> tuple[str, float]:
     """``level`` as ``(label, value)``, text then a number, else a ``ValueError`` that gives the order."""
     text, value = level if isinstance(level, (tuple, list)) and len(level) == 2 else (None, None)
@@ -186,7 +198,7 @@ def single_joint_panel(
     if quantity == "error" and reference is None:
         raise ValueError("an error panel needs the reference: pass reference=<function of t>")
     ylabel, read = SINGLE_JOINT_QUANTITIES[quantity]
-    runs, level, limit = _one_joint(runs), None if level is None else _level(level), _limit(limit)
+    runs, level, limit = _single_joint_options(runs, level, limit)
     first = next(iter(runs.values()))
     if reference is not None and quantity == "angle":
         desired = np.degrees(_desired_angle(reference, first.t))
@@ -244,7 +256,7 @@ def single_joint_figure(
         raise ValueError(f"name at least one quantity to plot, from {list(SINGLE_JOINT_QUANTITIES)}")
     side_by_side = validate.flag("side_by_side", side_by_side)
     # checked before the figure is made, which would otherwise stay open, empty, under the error
-    runs, level, limit = _one_joint(runs), None if level is None else _level(level), _limit(limit)
+    runs, level, limit = _single_joint_options(runs, level, limit)
     shape, height = ((1, n), 3.4) if side_by_side else ((n, 1), 1.1 + 1.8 * n)
     fig, axes = _figure(height, *shape, sharex=not side_by_side)
     axes = axes.ravel()
@@ -342,7 +354,7 @@ def reaching_figure(runs: Mapping[str, object], q_d, target, reach: tuple[float,
     :math:`q_{d,j} - q_j` (desired minus actual) in degrees, the two joint torques, then the
     end-effector path and the distance to the target in millimetres.
     """
-    runs = _joints(_logged(runs, site=True), 2, "pass the runs of the planar 2R arm")
+    runs = _planar_2r(runs)
     q_d = validate.vector("q_d (the desired joint angles [q1, q2] in rad)", q_d, (2,))
     target = validate.vector("target (x, y)", target, (2,))
     reach = _reach(reach)
@@ -398,7 +410,7 @@ def circle_tracking_figure(runs: Mapping[str, object], desired_path):
     the text column: on the left the path against the desired circle; on the right, stacked,
     the norm of the Cartesian error in millimetres and the joint torques.
     """
-    runs = _joints(_logged(runs, site=True, reference=True), 2, "pass the runs of the planar 2R arm")
+    runs = _planar_2r(runs, reference=True)
     desired_path = _desired_path(desired_path)
     fig, axes = plt.subplot_mosaic(
         [["path", "error"], ["path", "torques"]], figsize=(column_width(), 6.0), layout="constrained"
