@@ -175,7 +175,7 @@ def render_run(
     log: Log,
     *,
     target_quat=None,
-    fps: float = 12,
+    fps: float = 25,
     width: int = 320,
     height: int = 240,
     camera: str | int | None = None,
@@ -202,8 +202,9 @@ def render_run(
     OpenGL renders several times faster without them. A progress bar (tqdm) shows while
     ``progress`` is true; in a notebook it is erased when the video is done.
 
-    ``speed`` is the playback rate (0.25 shows a quick motion four times slower, in four times
-    as many frames) and ``until`` the part of the run to replay, in seconds from its start (the
+    ``fps`` is the video's frame rate, 25 frames/s by default (Task 3's animations have the
+    same; the lab's own videos run at 30). ``speed`` is the playback rate (0.25 shows a quick
+    motion four times slower, in four times as many frames) and ``until`` the part of the run to replay, in seconds from its start (the
     whole run by default); :func:`labsupport.plots.frame_indices` picks the logged rows.
 
     Raises:
@@ -516,7 +517,7 @@ def show_run_video(
     *,
     description: str,
     title: str | None = None,
-    fps: float = 12,
+    fps: float = 25,
     **options,
 ) -> np.ndarray | None:
     """Render ``log`` (see :func:`render_run`, which takes the same ``options``) and show it with
