@@ -531,7 +531,7 @@ def planar_arm_frames(
             reference point) and ``path`` ((M, 2) a fixed curve, e.g. the desired circle).
             The trail of the end effector is drawn behind the arm.
         arm: :class:`labsupport.kinematics.planar_2r.Planar2R`.
-        t: (N,) times, printed in the corner.
+        t: (N,) times, printed in the top left corner.
         frames: sample indices to draw (all by default, see :func:`frame_indices`), at most
             :data:`MAX_FRAMES`.
         size: (width, height) of the video in pixels (even numbers, for H.264), at most
@@ -597,7 +597,8 @@ def planar_arm_frames(
         (ref,) = ax.plot([], [], "r*", ms=8)
         for line in (links, ref):  # every joint, and the one moving target point, drawn
             line.set_markevery(None)
-        clock = ax.text(0.03, 0.04, "", transform=ax.transAxes, fontsize=8)
+        # top left, outside the reach: a video player's controls cover the bottom while paused
+        clock = ax.text(0.03, 0.97, "", transform=ax.transAxes, fontsize=8, va="top")
         artists.append((ee, elbow, panel.get("ref"), trail, links, ref, clock))
 
     out = np.empty((len(frames), height, width, 3), dtype=np.uint8)
