@@ -67,6 +67,27 @@ def test_assign_rejects_unbalanced_markers():
     )
 
 
+@pytest.mark.parametrize("name", ["problem1_reaching", "problem2_tracking"])
+def test_student_notebook_states_the_points_the_grader_gives(name):
+    """The page a student reads gives each check's points and their total as the spec the batch
+    grader adds up, each check under the TODO its cell follows; points changed in the master's
+    metadata change the page."""
+    master = nbformat.read(str(ROOT / "notebooks" / "masters" / f"{name}.ipynb"), as_version=4)
+    checks = master.metadata["labsupport_grading"]["checks"]
+    intro = assign.student_notebook(master).cells[0].source
+    assert assign.POINTS_MARKER not in intro
+    row = re.compile(r"^\| `(\w+)` \(([^)]+)\) \| .+? \| (\d+) \|$", re.M)
+    rows = {name: (section, int(points)) for name, section, points in row.findall(intro)}
+    assert {n: p for n, (_, p) in rows.items()} == {c["name"]: c["points"] for c in checks}
+    assert f"| **Total** | | **{sum(c['points'] for c in checks)}** |" in intro
+    first = checks[0]["name"]
+    assert rows[first][0].startswith("TODO") and rows[checks[-1]["name"]][0] == "Final check"
+    checks[0]["points"] += 4
+    changed = assign.student_notebook(master).cells[0].source
+    assert f"| `{first}` ({rows[first][0]}) |" in changed and f"| {checks[0]['points']} |" in changed
+    assert f"| **Total** | | **{sum(c['points'] for c in checks)}** |" in changed
+
+
 @pytest.mark.parametrize(
     "change, words",
     [

@@ -16,7 +16,10 @@ A master (``notebooks/masters/*.ipynb``) holds the solution and the checks, in t
   removed; a cell tagged ``solution`` is dropped whole;
 * each check is a code cell ``check("name", globals())``, right after the TODO it checks.
 * a cell's ``tags`` (but ``solution``) and its ``mystnb`` metadata (the book's options for the
-  cell, e.g. a figure's alt text) are kept; other cell metadata is dropped.
+  cell, e.g. a figure's alt text) are kept; other cell metadata is dropped;
+* a markdown line ``<!-- POINTS TABLE -->`` becomes the table of the checks' points
+  (:func:`points_table`), each check under the ``##`` heading of the section its cell is in, so
+  the page a student reads gives the same points as the grader.
 
 The student notebook keeps the checks' list in its metadata (so it needs no extra file, on
 Colab too) and the spec ``tests/autograder/<problem>.json`` tells the batch grader which checks
@@ -45,6 +48,9 @@ ROOT = Path(__file__).resolve().parents[2]
 #: Where ``--problem NAME`` of the batch and Canvas commands finds them, from any working folder.
 SPECS = ROOT / SPEC_DIR
 _CHECK_CELL = re.compile(r'^check\("([a-z0-9_]+)", globals\(\)\)\s*$')
+_HEADING = re.compile(r"^##\s+(.+?)\s*$", re.M)
+#: The markdown line that the student notebook gets the points table in place of.
+POINTS_MARKER = "<!-- POINTS TABLE -->"
 #: Cell metadata copied as is into the student's cell: ``mystnb`` holds the book's per-cell
 #: options, such as a figure's text alternative (``{"mystnb": {"image": {"alt": ...}}}``).
 CARRIED_METADATA = ("mystnb",)
@@ -159,6 +165,19 @@ def check_the_checks(checks) -> None:
         raise MasterError(f"each check may be listed once, got {names}")
 
 
+def points_table(checks: list[dict], sections: dict[str, str]) -> str:
+    """A Markdown table of the checks in the order listed: each check's name with the section its
+    cell is in (``sections``, check name to heading, of which the part before a colon is shown:
+    "TODO 1"), what it grades (its title), its points, and the total."""
+    total = sum(c["points"] for c in checks)
+    rows = ["| Check cell | What it grades | Points |", "| --- | --- | ---: |"]
+    for c in checks:
+        section = sections.get(c["name"], "").split(":")[0]  # "TODO 1: inverse kinematics" -> "TODO 1"
+        rows.append(f"| `{c['name']}` ({section}) | {c['title']} | {c['points']:g} |")
+    rows.append(f"| **Total** | | **{total:g}** |")
+    return "\n".join(rows)
+
+
 def student_notebook(master: nbformat.NotebookNode, where: str = "master") -> nbformat.NotebookNode:
     """The student notebook generated from a master (no outputs, same cell ids)."""
     meta = master.metadata.get("labsupport_grading")
@@ -174,7 +193,7 @@ def student_notebook(master: nbformat.NotebookNode, where: str = "master") -> nb
         "language_info": {"name": "python"},
         "labsupport_grading": {"problem": meta["problem"], "checks": copy.deepcopy(meta["checks"])},
     }
-    seen = []
+    seen, sections, section = [], {}, ""
     for k, cell in enumerate(master.cells):
         if "solution" in cell.metadata.get("tags", []):
             continue
@@ -183,9 +202,11 @@ def student_notebook(master: nbformat.NotebookNode, where: str = "master") -> nb
             m = _CHECK_CELL.match(src)
             if m:
                 seen.append(m.group(1))
+                sections[m.group(1)] = section
             new = nbformat.v4.new_code_cell(src)
         elif cell.cell_type == "markdown":
             new = nbformat.v4.new_markdown_cell(strip_markdown(cell.source))
+            section = ([section] + _HEADING.findall(new.source))[-1]
         else:
             new = nbformat.v4.new_raw_cell(cell.source)
         new.id = cell.get("id", f"cell-{k}")
@@ -199,6 +220,10 @@ def student_notebook(master: nbformat.NotebookNode, where: str = "master") -> nb
     names = [c["name"] for c in meta["checks"]]
     if sorted(seen) != sorted(names):
         raise MasterError(f"{where}: check cells {seen} do not match the metadata's checks {names}")
+    table = points_table(meta["checks"], sections)
+    for cell in nb.cells:
+        if cell.cell_type == "markdown":
+            cell.source = cell.source.replace(POINTS_MARKER, table)
     return nb
 
 
