@@ -2082,9 +2082,10 @@ def test_an_ik_with_one_wrong_branch_is_told_which_target_and_branch(master1):
 
     result = grade("p1_ik", ik_3r=down_is_up)
     assert result.score == 0.5 and result.message.count("IK:") == 1, result
-    assert "5 of 10 solutions are right. The first wrong one, target [" in result.message
+    n = problem1.N_TARGETS
+    assert f"{n} of {2 * n} solutions are right. The first wrong one, target [" in result.message
     assert "elbow_up=False: the elbow-down call reaches the target, but with the elbow above" in result.message
-    assert str(result).startswith("◐ [p1_ik] (50 % of this check's points) IK: 5 of 10")
+    assert str(result).startswith(f"◐ [p1_ik] (50 % of this check's points) IK: {n} of {2 * n}")
     missing = grade("p1_ik")
     assert missing.message == "IK: ik_3r is not defined: run its cell (above) first, or restore it if it was deleted"
     number = grade("p1_ik", ik_3r=3)
@@ -2102,9 +2103,32 @@ def test_an_ik_that_raises_on_one_branch_keeps_the_other_branchs_credit(master1)
         return right(x, elbow_up=True)
 
     result = grade("p1_ik", ik_3r=up_only)
+    n = problem1.N_TARGETS
     assert result.score == 0.5, result
-    assert "IK: 5 of 10 solutions are right. The first wrong one, target [" in result.message
+    assert f"IK: {n} of {2 * n} solutions are right. The first wrong one, target [" in result.message
     assert "elbow_up=False: ik_3r raised ValueError: only the elbow-up branch is written" in result.message
+
+
+def test_an_ik_that_hangs_on_one_branch_keeps_the_other_and_the_checks_time(master1):
+    """Every elbow-up target is solved before the first elbow-down one, and after MAX_TIMEOUTS
+    elbow-down calls that did not return no more are made: the elbow-up half counts, and a hung
+    branch costs the check two call limits, not one per target (25 of them, past the check's
+    budget, stopped the sandbox and cost the other checks their points)."""
+    right, calls = master1["ik_3r"], []
+
+    class HangsElbowDown(DirectProbe):
+        def call(self, fname, *args, **kwargs):
+            calls.append(kwargs["elbow_up"])
+            if not kwargs["elbow_up"]:
+                raise feedback.StudentTimeout("ik_3r did not return: it used too much CPU time")
+            return super().call(fname, *args, **kwargs)
+
+    result = problem1.check_ik(HangsElbowDown({"ik_3r": right}), PUBLIC_SEED)
+    n = problem1.N_TARGETS
+    assert calls == [True] * n + [False] * problem1.MAX_TIMEOUTS
+    assert result.score == 0.5, result
+    assert f"IK: {n} of {2 * n} solutions are right." in result.message
+    assert f"The other {n - 2} elbow-down calls were not made (counted wrong)" in result.message
 
 
 def test_a_computed_torque_that_inverts_the_mass_matrix_is_named(master1):
