@@ -2568,3 +2568,28 @@ def test_a_run_that_leaves_its_branch_asks_about_the_ik_only_where_the_ik_left_i
     ):
         said = problem2._left_the_branch(model, log, every=1, ik=lambda x, answer=answer: answer)
         assert said.startswith("at t = 0.10 s the elbow was below") and words in said, said
+
+
+def test_a_mujoco_call_with_wrong_arguments_is_told_the_call_it_takes():
+    """MuJoCo's "incompatible function arguments" dumps its binding's types (typing.Annotated[...],
+    cut short in the batch's notes); the check says the call the function takes instead, and a
+    site given by name where MuJoCo takes its id is told how to get the id."""
+
+    def ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        jacp = np.zeros((3, model.nv))
+        mujoco.mj_jacSite(model, data, jacp, None, "end_effector")
+        return np.zeros(3)
+
+    result = grade("p2_osct", ct_op_torque=ct_op_torque)
+    assert result.score == 0
+    assert (
+        "ct_op_torque raised TypeError: mujoco.mj_jacSite does not take the arguments it was given: it takes "
+        "mj_jacSite(m: model, d: data, jacp: float64 array or None, jacr: float64 array or None, site: int)"
+    ) in result.message
+    assert 'model.site("end_effector").id' in result.message and "typing" not in result.message
+    cut = feedback.raised_text("f", "TypeError: mj_mulM(): incompatible function arguments. The following ar")
+    assert cut.endswith(
+        "mj_mulM(m: model, d: data, res: float64 array, vec: float64 array), each array a "
+        "C-contiguous float64 NumPy array"
+    )
+    assert feedback.mujoco_arguments_text("TypeError: f(): incompatible function arguments") is None

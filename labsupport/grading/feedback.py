@@ -24,6 +24,7 @@ from dataclasses import dataclass, field, replace
 from functools import cache
 from typing import Any
 
+import mujoco
 import numpy as np
 
 from labsupport import validate
@@ -372,9 +373,63 @@ SIGNATURE_HINT = (
 )
 
 
+def _top_level_split(text: str) -> list[str]:
+    """``text`` split at the commas outside brackets and quotes (a parameter list)."""
+    parts, depth, quote, start = [], 0, "", 0
+    for i, c in enumerate(text):
+        if quote:
+            quote = "" if c == quote else quote
+        elif c in "\"'":
+            quote = c
+        elif c in "[(":
+            depth += 1
+        elif c in "])":
+            depth -= 1
+        elif c == "," and depth == 0:
+            parts.append(text[start:i].strip())
+            start = i + 1
+    return [*parts, text[start:].strip()]
+
+
+def _plain_type(annotation: str) -> str:
+    """A binding's type annotation in a student's words: ``model``, ``float64 array``, ``int``."""
+    words = (("MjModel", "model"), ("MjData", "data"), ("ndarray", "float64 array"), ("NDArray", "float64 array"))
+    kind = next((plain for key, plain in words if key in annotation), None)
+    if kind is None:
+        kind = "int" if "Int" in annotation or "int" in annotation else annotation.split(".")[-1]
+    return kind + (" or None" if "None" in annotation else "")
+
+
+def mujoco_arguments_text(error: str) -> str | None:
+    """MuJoCo's "incompatible function arguments" error, which dumps its binding's types, said as
+    the call it takes (``mj_jacSite(m: model, d: data, jacp: float64 array or None, ..., site:
+    int)``), from the function's own signature (the error may come cut short); ``None`` for any
+    other error."""
+    match = re.match(r"TypeError: (mj[a-z]*_\w+)\(\): incompatible function arguments", error)
+    function = getattr(mujoco, match.group(1), None) if match else None
+    signature = re.match(r"\w+\((.*)\) ->", (getattr(function, "__doc__", None) or "").split("\n")[0])
+    if signature is None:
+        return None
+    params = []
+    for param in _top_level_split(signature.group(1)):
+        name, _, annotation = param.partition(":")
+        params.append(f"{name.strip()}: {_plain_type(annotation)}")
+    given = error.partition("Invoked with:")[2]
+    by_name = (
+        ' (a name was given where it takes an id: model.site("end_effector").id, or model.body(name).id)'
+        if re.search(r"'[^']*'", given) and any(p.endswith(": int") for p in params)
+        else ""
+    )
+    return (
+        f"TypeError: mujoco.{match.group(1)} does not take the arguments it was given: it takes "
+        f"{match.group(1)}({', '.join(params)}), each array a C-contiguous float64 NumPy array{by_name}"
+    )
+
+
 def raised_text(fname: str, error: str) -> str:
     """What to say when the student's ``fname`` raised ``error`` (``"TypeName: message"``), with a
-    hint where the error has a common cause in this lab."""
+    hint where the error has a common cause in this lab; MuJoCo's dump of its binding's types is
+    said as the call the function takes."""
     hint = ""
     if error.startswith("LinAlgError") and "ingular" in error:
         hint = SINGULAR_HINT
@@ -386,7 +441,7 @@ def raised_text(fname: str, error: str) -> str:
         hint = SIGNATURE_HINT  # the call of fname itself does not fit its def line
     else:
         hint = full_m_advice(error)
-    return f"{fname} raised {error}{hint}"
+    return f"{fname} raised {mujoco_arguments_text(error) or error}{hint}"
 
 
 @cache
