@@ -172,6 +172,22 @@ def test_without_a_sandbox_the_same_notebook_scores_the_same(tmp_path, checks, m
     assert f"{tmp_path}/unsafe/row-".startswith(head) or head.startswith(f"{tmp_path}/unsafe/row-"), files
 
 
+def test_a_function_whose_cell_failed_is_told_why_it_is_not_defined(start, checks):
+    """A function whose defining cell raised (a syntax error) is named with that cell and its
+    error, the line counted in the cell, never IPython's <ipython-input-...> name; a function no
+    cell defines keeps the plain "not defined"."""
+    checks.update(c_double=check_double)
+    broken = notebook("x = 1", "def double(x):\n    return 2 * (x")
+    row = judge.grade(spec(c_double=2), broken, SEED, start)
+    assert row["scores"] == {"c_double": 0.0}, row
+    message = row["messages"]["c_double"]
+    assert message.startswith("double is not defined: its cell 2 ('def double(x):') raised SyntaxError: "), message
+    assert "(line 2 of the cell)" in message and "ipython-input" not in message, message
+    assert "ipython-input" not in " ".join(row["notes"]), row["notes"]
+    row = judge.grade(spec(c_double=2), notebook("x = 1"), SEED, start)
+    assert "double is not defined in the notebook (its cell was deleted" in row["messages"]["c_double"], row
+
+
 def test_errors_forged_in_the_graders_channel_are_named_and_never_break_the_row(start, checks):
     """The notebook's process writes the report of its own run, so a notebook can rewrite it:
     entries that are not ``[cell, text]`` are dropped, and a cell the notebook does not have

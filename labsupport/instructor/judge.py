@@ -401,15 +401,29 @@ class SandboxProbe(Probe):
             "idle": self.budget.idle,
         }
         answer = self._ask(payload, fname)
+        self._refuse_missing(fname, answer)
         changed = answer.get("state_written")  # words for a note: only what the sandbox writes is taken
         if isinstance(changed, list) and all(isinstance(f, str) and f in STATE_FIELDS for f in changed):
             self.notice_state_write(fname, changed)
         return _decode(fname, answer, call=True)
 
     def get(self, name: str):
-        return _decode(
-            name, self._ask({"op": "get", "name": name, "cpu": self.budget.call, "idle": self.budget.idle}, name)
-        )
+        answer = self._ask({"op": "get", "name": name, "cpu": self.budget.call, "idle": self.budget.idle}, name)
+        self._refuse_missing(name, answer)
+        return _decode(name, answer)
+
+    def _refuse_missing(self, name: str, answer: dict) -> None:
+        """``StudentError`` where the notebook has no ``name``, naming the cell that defines it
+        and what went wrong there when that cell raised (a syntax error, say): "not defined"
+        alone sends a student looking for a deleted cell."""
+        if not answer.get("missing"):
+            return
+        errors = {e[0]: e[1] for e in _listed(self.first_run or {}, "errors") if _is_cell_error(e)}
+        defines = re.compile(rf"^(?:def\s+{re.escape(name)}\b|{re.escape(name)}\s*=)", re.M)
+        for k, (index, source) in enumerate(self.cells):
+            if k in errors and defines.search(source):
+                raise StudentError(f"{name} is not defined: its {_cell_named(index, source)} {_error_note(errors[k])}")
+        _decode(name, answer)  # the plain "not defined"
 
     def files(self) -> dict:
         """What the notebook wrote in its scratch space (empty if it is not running)."""
@@ -656,6 +670,11 @@ def _cell_named(index: int, source: str) -> str:
     return f"cell {index + 1} ({first[:40] + ('…' if len(first) > 40 else '')!r})"
 
 
+def _is_cell_error(entry) -> bool:
+    """Whether ``entry`` of the first run's ``errors`` is what the sandbox writes: ``[cell, text]``."""
+    return isinstance(entry, list) and [type(x) for x in entry] == [int, str]
+
+
 def _listed(answer: dict, key: str) -> list:
     """``answer[key]`` if it is a list, else an empty one: an answer comes from the submission's
     process, which may have tampered with it."""
@@ -685,6 +704,9 @@ def _error_note(text: str) -> str:
     if match is None:
         return f"reported an error in a form the sandbox never writes: {json.dumps(text[:200], ensure_ascii=False)}"
     name, message = match.groups()
+    if name in ("SyntaxError", "IndentationError", "TabError") and message:
+        # IPython names the cell <ipython-input-1-7158b2399f77>; the student knows it as the cell
+        message = re.sub(r"\(<ipython-input-[^>]*>, line (\d+)\)", r"(line \1 of the cell)", message)
     note = f"raised {name}" + ("" if message is None else f": {json.dumps(message, ensure_ascii=False)}")
     missing = _MISSING_MODULE.fullmatch(message or "") if name == "ModuleNotFoundError" else None
     if missing and missing.group(1).split(".")[0] != "labsupport":
@@ -772,7 +794,7 @@ def grade(
             notes.append(str(err))
         if probe.first_run:
             for entry in _listed(probe.first_run, "errors")[:5]:
-                if not (isinstance(entry, list) and [type(x) for x in entry] == [int, str]):
+                if not _is_cell_error(entry):
                     continue  # not what the sandbox writes
                 k, text = entry
                 cell = _cell_named(*cells[k]) if 0 <= k < len(cells) else f"code cell {k + 1}"
