@@ -558,5 +558,6 @@ def test_the_cells_cpu_time_together_counts_from_the_processs_start(start, check
     assert row["notes"] == [
         "cell 2 ('import time') timed out (cpu of all cells together)",
         "cell 3 ('def double(x):') not run, nor any cell after it (the cells had used up their cpu time together)",
-        "c_double: double is not defined in the notebook (its cell was deleted, renamed or failed, or never ran)",
+        "c_double: double is not defined: its cell 3 ('def double(x):') not run, nor any cell after it (the cells "
+        "had used up their cpu time together)",
     ], row["notes"]

@@ -420,9 +420,17 @@ class SandboxProbe(Probe):
             return
         errors = {e[0]: e[1] for e in _listed(self.first_run or {}, "errors") if _is_cell_error(e)}
         defines = re.compile(rf"^(?:def\s+{re.escape(name)}\b|{re.escape(name)}\s*=)", re.M)
+        unrun = [k for k, text in errors.items() if text in _LIMIT_TEXTS and text.startswith("not run")]
         for k, (index, source) in enumerate(self.cells):
-            if k in errors and defines.search(source):
+            if not defines.search(source):
+                continue
+            if k in errors:
                 raise StudentError(f"{name} is not defined: its {_cell_named(index, source)} {_error_note(errors[k])}")
+            if unrun and k > unrun[0]:
+                raise StudentError(
+                    f"{name} is not defined: its {_cell_named(index, source)} never ran, the cells before it "
+                    "having used up their time together (see the notes)"
+                )
         _decode(name, answer)  # the plain "not defined"
 
     def files(self) -> dict:
