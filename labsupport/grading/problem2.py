@@ -99,10 +99,11 @@ OVER_THE_TOP = (
 )
 #: What a tracking error above :data:`RMS_TOL` from a law that runs usually means.
 TRACKING_HINT = (
-    " (a right law tracks to 0.075 mm or less here; 0.4 mm or more is what a missing or wrong term leaves: "
-    "J̇q̇, the Coriolis part of h, or M; the formula checks above say which. If they all pass, look for state "
-    "your law keeps between calls, such as the last J of a J̇ by time differences: each run starts at t = 0, "
-    "after the checks' calls, so start afresh when data.time goes back)"
+    " (a right law stays below 0.075 mm on every circle this check draws; 0.4 mm or more is what a missing "
+    "or wrong term leaves: J̇q̇, the Coriolis part of h, or M, and the formula checks above say which. Where "
+    "they pass and the run still misses, look for state your law keeps between calls, such as the last J of "
+    "a J̇ by time differences: each run starts at t = 0, after the checks' calls, so start afresh when "
+    "data.time goes back)"
 )
 JDOT_HINT = (
     'MuJoCo gives it: site_jdot_qdot(model, data, "end_effector")[:3]; a finite-difference '
@@ -231,7 +232,7 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
         "inverse_mass": Mistake(np.linalg.solve(M, np.linalg.solve(J, xdd_d + fb - jdq)) + h, INVERSE_MASS, 0.25),
         "transpose": Mistake(M @ (J.T @ (xdd_d + fb - jdq)) + h, "use J⁻¹ (np.linalg.solve(J, v)), not Jᵀ.", 0.0),
         "no_ff": Mistake(law(fb - jdq), "the feed-forward acceleration ẍ_d is missing.", 0.25),
-        "sign": Mistake(law(xdd_d - fb - jdq), "the feedback has the wrong sign: e = x_d − x, ė = ẋ_d − J q̇.", 0.0),
+        "sign": Mistake(law(xdd_d - fb - jdq), "the feedback terms (Kp, Kd) have the wrong sign: e = x_d − x, ė = ẋ_d − J q̇.", 0.0),
         "spring_sign": Mistake(
             law(xdd_d + Kd * edot - Kp * e - jdq),
             "the spring term has the wrong sign: Kp (x_d − x), not Kp (x − x_d); the damping term is right.",
@@ -391,7 +392,7 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
         "no_mass": Mistake(qdd_d + fb + h, "the mass matrix is missing: τ = M(q)(...) + h.", 0.25),
         "inverse_mass": Mistake(np.linalg.solve(M, qdd_d + fb) + h, INVERSE_MASS, 0.25),
         "no_ff": Mistake(M @ fb + h, "the feed-forward acceleration q̈_d is missing.", 0.25),
-        "sign": Mistake(M @ (qdd_d - fb) + h, "the feedback has the wrong sign: e = q_d − q.", 0.0),
+        "sign": Mistake(M @ (qdd_d - fb) + h, "the feedback terms (Kp, Kd) have the wrong sign: e = q_d − q.", 0.0),
         "spring_sign": Mistake(
             law(qdd_d, qq=2 * q - q_d),
             "the spring term has the wrong sign: Kp (q_d − q), not Kp (q − q_d); the damping term is right.",

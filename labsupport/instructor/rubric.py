@@ -66,7 +66,7 @@ def _sentence(text: str) -> str:
     symbol (``h(q, q̇)``, ``e = ...``) keeps its case, which is part of the symbol."""
     if text[1:2].isalpha():
         text = text[:1].upper() + text[1:]
-    return text if text.endswith((".", ")")) else text + "."
+    return text if text.endswith((".", ".)", "!", "?")) else text + "."  # "... (a remark)" too
 
 
 def _cell(text: str) -> str:
