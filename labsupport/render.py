@@ -204,8 +204,9 @@ def render_run(
 
     ``fps`` is the video's frame rate, 25 frames/s by default (Task 3's animations have the
     same; the lab's own videos run at 30). ``speed`` is the playback rate (0.25 shows a quick
-    motion four times slower, in four times as many frames) and ``until`` the part of the run to replay, in seconds from its start (the
-    whole run by default); :func:`labsupport.plots.frame_indices` picks the logged rows.
+    motion four times slower, in four times as many frames) and ``until`` the part of the run
+    to replay, in seconds from its start (the whole run by default);
+    :func:`labsupport.plots.frame_indices` picks the logged rows.
 
     Raises:
         ValueError: ``fps`` outside (0, 60], a camera the model does not have, a log of another

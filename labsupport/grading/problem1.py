@@ -309,7 +309,9 @@ def _ct_mistakes(T, state, q_d, Kp, Kd):
             INVERSE_MASS,
             0.25,
         ),
-        "sign": Mistake(M @ (-v) + h, "the feedback terms (Kp, Kd) have the wrong sign: use e = q_d − q and −Kd q̇.", 0.0),
+        "sign": Mistake(
+            M @ (-v) + h, "the feedback terms (Kp, Kd) have the wrong sign: use e = q_d − q and −Kd q̇.", 0.0
+        ),
         "spring_sign": Mistake(
             M @ (-Kp * e - Kd * qdot) + h,
             "the spring term has the wrong sign: Kp (q_d − q), not Kp (q − q_d); the damping −Kd q̇ is right.",

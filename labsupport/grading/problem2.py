@@ -232,7 +232,9 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
         "inverse_mass": Mistake(np.linalg.solve(M, np.linalg.solve(J, xdd_d + fb - jdq)) + h, INVERSE_MASS, 0.25),
         "transpose": Mistake(M @ (J.T @ (xdd_d + fb - jdq)) + h, "use J⁻¹ (np.linalg.solve(J, v)), not Jᵀ.", 0.0),
         "no_ff": Mistake(law(fb - jdq), "the feed-forward acceleration ẍ_d is missing.", 0.25),
-        "sign": Mistake(law(xdd_d - fb - jdq), "the feedback terms (Kp, Kd) have the wrong sign: e = x_d − x, ė = ẋ_d − J q̇.", 0.0),
+        "sign": Mistake(
+            law(xdd_d - fb - jdq), "the feedback terms (Kp, Kd) have the wrong sign: e = x_d − x, ė = ẋ_d − J q̇.", 0.0
+        ),
         "spring_sign": Mistake(
             law(xdd_d + Kd * edot - Kp * e - jdq),
             "the spring term has the wrong sign: Kp (x_d − x), not Kp (x − x_d); the damping term is right.",
