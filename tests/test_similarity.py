@@ -122,6 +122,19 @@ def test_code_added_around_a_shared_answer_does_not_hide_it(spec):
     assert "of a whole answer" in similarity.similarity_reports(notebooks, spec)["similarity.html"]
 
 
+def test_a_pair_sharing_more_than_a_whole_answer_shows_how_much_and_the_page_says_why():
+    """The report showed 122 % "of a whole answer" without a word: the share is of the size of the
+    master's answer, not of either notebook, so two that share more code than it holds (here a
+    copy and the same padding) are over 100 %. It is kept as measured, and the page says so."""
+    copy = disguised_copy(SPEC1)
+    reports = similarity.similarity_reports({"a.ipynb": padded(copy, 0), "b.ipynb": padded(copy, 0)}, SPEC1)
+    row = _pairs(reports)["a.ipynb", "b.ipynb"]
+    assert float(row["file's own code in other [%]"]) == 100 and float(row["shared, of a whole answer [%]"]) > 300
+    page = reports["similarity.html"]
+    assert "shared code, of a whole answer (over 100 %: more than a whole answer)</th>" in page
+    assert "where two share more code than a whole answer holds" in page and "it is over 100 %" in page
+
+
 def test_without_the_master_a_whole_answer_is_the_median_submissions():
     handed_out, _ = similarity.handed_out_and_master(SPEC1)
     copy = similarity.own_code(disguised_copy(SPEC1), handed_out)
@@ -369,8 +382,8 @@ def test_a_report_that_cannot_be_made_costs_no_grade(tmp_path, capsys):
 
 
 def test_the_compare_command_writes_the_batchs_report_and_leaves_the_grades(tmp_path, capsys):
-    """Run on a batch's output folder, it makes the batch's report again (the batch's goes into
-    previous/) and touches nothing else; --flag lowers the bar."""
+    """Run on a batch's output folder, it makes the batch's report again, in its compare/
+    subfolder, and touches nothing of the batch's; --flag lowers the bar."""
     subs = tmp_path / "subs"
     subs.mkdir()
     (subs / "copier.ipynb").write_bytes(disguised_copy(SPEC1))
@@ -391,19 +404,48 @@ def test_the_compare_command_writes_the_batchs_report_and_leaves_the_grades(tmp_
     said = "2 submissions compared; pairs sharing at least 60 % of one's own code or of a whole answer: 1;"
     assert said in captured.out
     assert "not compared: empty.ipynb (the file is empty" in captured.err
+    assert f"see {out / 'compare' / 'similarity.html'}" in captured.out
     now = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
     for name in compare.REPORTS:
-        assert now[Path(name)] == graded[Path(name)]  # the same report as the batch's
-        assert now[Path("previous") / name] == graded[Path(name)]
-    assert {k: v for k, v in now.items() if k.parts[0] != "previous" and k.name not in compare.REPORTS} == {
-        k: v for k, v in graded.items() if k.name not in compare.REPORTS
-    }
+        assert now[Path("compare") / name] == graded[Path(name)]  # the same report as the batch's
+    assert {k: v for k, v in now.items() if k.parts[0] != "compare"} == graded  # the batch's files, untouched
     compare.main(["--problem", "problem1", str(subs), "--out", str(out), "--flag", "0.05"])
-    lowered = _pairs({"similarity.csv": (out / "similarity.csv").read_text(encoding="utf-8")})
+    lowered = _pairs({"similarity.csv": (out / "compare" / "similarity.csv").read_text(encoding="utf-8")})
     assert ("copier.ipynb", similarity.MASTER) in lowered and ("partial.ipynb", similarity.MASTER) in lowered
     assert 5 <= float(lowered["partial.ipynb", similarity.MASTER]["other's own code in file [%]"]) < 60
-    page = (out / "similarity.html").read_text(encoding="utf-8")
+    page = (out / "compare" / "similarity.html").read_text(encoding="utf-8")
     assert "at least 5 % of its own code" in page and "with 1 reference notebook (" in page
+    assert (out / "compare" / "previous" / "similarity.csv").read_bytes() == graded[Path("similarity.csv")]
+
+
+def test_each_previous_level_stays_one_run_after_batch_batch_compare(tmp_path, capsys):
+    """batch, a regrade into the same folder, then compare into it: previous/ held the first
+    batch's grades beside the second's report, and the first's report was pushed down to
+    previous/previous/. Each previous/ level is now one earlier run, whole, through a third
+    batch too; the comparisons keep their own levels in compare/."""
+    subs = tmp_path / "subs"
+    subs.mkdir()
+    (subs / "copier.ipynb").write_bytes(disguised_copy(SPEC1))
+    out = tmp_path / "out"
+    spec = ROOT / "tests" / "autograder" / "problem1.json"
+
+    def batch_run(seed: int) -> dict[str, bytes]:
+        batch.main([*_argv(subs, out, spec), "--seed", str(seed)])
+        return {name: (out / name).read_bytes() for name in ("batch.json", "grades.csv", *compare.REPORTS)}
+
+    first, second = batch_run(2**40 + 1), batch_run(2**40 + 2)
+    compare.main(["--problem", "problem1", str(subs), "--out", str(out), "--flag", "0.05"])
+    compared = {name: (out / "compare" / name).read_bytes() for name in compare.REPORTS}
+    assert compared["similarity.html"] != second["similarity.html"]  # made at another flag
+    third = batch_run(2**40 + 3)
+    levels = {"": third, "previous": second, "previous/previous": first}
+    for level, run in levels.items():
+        for name, data in run.items():
+            assert (out / level / name).read_bytes() == data, (level, name)
+        assert (out / level / "feedback" / "copier.txt").is_file()
+    assert not (out / "previous" / "previous" / "previous").exists()
+    assert sorted(p.name for p in (out / "compare").iterdir()) == sorted(compare.REPORTS)
+    assert {name: (out / "compare" / name).read_bytes() for name in compare.REPORTS} == compared
 
 
 @pytest.mark.parametrize(

@@ -12,8 +12,13 @@ as it comes: each student's notebook for the Problem is compared, named as Canva
 runs no student code, so it needs no sandbox and takes seconds where grading takes minutes. Use
 it to compare with another year's submissions once the grades are in, or to list the pairs at a
 lower ``--flag`` (0.4, say) than the batch's
-:data:`~labsupport.instructor.similarity.FLAG_SHARE`. Given the batch's output folder, it moves
-the batch's report into ``previous/`` and leaves the grades as they are.
+:data:`~labsupport.instructor.similarity.FLAG_SHARE`.
+
+Each ``previous/`` level of an output folder is one earlier run of the command that writes there
+(:func:`labsupport.instructor.outputs.keep_previous`). Given a grader's output folder (the batch's,
+or the Canvas command's), this command writes into its ``compare/`` subfolder
+(:func:`report_folder`): the grader's own report stays beside its grades, and what an earlier
+comparison wrote moves into ``compare/previous/``.
 """
 
 from __future__ import annotations
@@ -34,12 +39,36 @@ from labsupport.instructor.batch import (
     read_submissions,
     shared_code_reports,
 )
-from labsupport.instructor.outputs import clean_text, keep_previous, keep_private
+from labsupport.instructor.outputs import (
+    BATCH_RESULTS,
+    CANVAS_RESULTS,
+    clean_text,
+    counted,
+    keep_previous,
+    keep_private,
+)
 from labsupport.instructor.similarity import FLAG_SHARE, pairs_listed
 from labsupport.instructor.submissions import is_zip, zip_notebooks
 
 #: The files this command writes (and moves into ``previous/`` when an earlier run left them).
 REPORTS = ("similarity.csv", "similarity.html")
+
+#: The subfolder of a grader's output folder that this command writes into (:func:`report_folder`).
+OWN_FOLDER = "compare"
+
+
+def report_folder(out: Path) -> Path:
+    """Where the reports go for ``--out out``: ``out`` itself, or ``out/compare/`` where a grader
+    wrote its results in ``out`` (a batch's ``grades.csv`` or ``batch.json``, a Canvas run's import
+    or report), now or in its ``previous/``. There, each ``previous/`` level holds one earlier run
+    of the grader, its report with its grades: a report written beside them would move the
+    grader's own into ``previous/``, apart from its grades, and push the earlier run's report a
+    level down from its own. In a folder of its own, each ``previous/`` level is one earlier
+    comparison."""
+    graded = [name for name in (*BATCH_RESULTS, *CANVAS_RESULTS) if name not in REPORTS]
+    if any((folder / name).is_file() for folder in (out, out / "previous") for name in graded):
+        return out / OWN_FOLDER
+    return out
 
 
 def flag_argument(text: str) -> float:
@@ -100,7 +129,8 @@ def main(argv=None) -> None:
         "--out",
         type=Path,
         required=True,
-        help="folder for similarity.csv and similarity.html (a batch's output folder too: its grades stay)",
+        help="folder for similarity.csv and similarity.html (a grader's output folder too: the reports go into "
+        "its compare/ subfolder, and its own report stays beside its grades)",
     )
     parser.add_argument(
         "--flag",
@@ -129,19 +159,20 @@ def main(argv=None) -> None:
         reports = shared_code_reports(payloads, spec, args.compare_with, args.flag)
     except ValueError as err:  # the spec's student notebook is gone
         parser.exit(2, f"{parser.prog}: cannot compare: {err}\n")
+    folder = report_folder(args.out)
     try:
-        args.out.mkdir(parents=True, exist_ok=True)
-        keep_previous(args.out, REPORTS)
+        folder.mkdir(parents=True, exist_ok=True)
+        keep_previous(folder, REPORTS)
         for name, text in reports.items():
-            atomic_write(args.out / name, text)
+            atomic_write(folder / name, text)
     except OSError as err:
         parser.exit(
-            2, f"{parser.prog}: cannot write {args.out} ({err.strerror or err}): give --out a folder you can write to\n"
+            2, f"{parser.prog}: cannot write {folder} ({err.strerror or err}): give --out a folder you can write to\n"
         )
     pairs = pairs_listed(reports)
     print(
-        f"{sum(1 for _, data, _ in payloads if data)} submissions compared; pairs sharing at least "
-        f"{100 * args.flag:g} % of one's own code or of a whole answer: {pairs}; see {args.out / 'similarity.html'}"
+        f"{counted(sum(1 for _, data, _ in payloads if data), 'submission')} compared; pairs sharing at least "
+        f"{100 * args.flag:g} % of one's own code or of a whole answer: {pairs}; see {folder / 'similarity.html'}"
     )
 
 

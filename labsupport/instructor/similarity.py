@@ -11,7 +11,8 @@ two files beside ``grades.csv``:
   two files (one may be the master's solution), the share of each one's own code found in the
   other, how much code they share (in characters of normalised code, what copydetect calls
   tokens: every name replaced by one letter, spaces and comments dropped), and what they share
-  in long passages as a share of a whole answer;
+  in long passages as a share of a whole answer (over 100 % where they share more code than a
+  whole answer holds: answers longer than the master's, or code beyond the answer);
 * ``similarity.html``: the same pairs side by side, the shared passages marked, for reading in
   a browser (one self-contained page).
 
@@ -254,7 +255,8 @@ def similarity_html(
     table = (
         "<table><caption>Pairs, most shared first</caption><tr><th scope='col'>file</th>"
         "<th scope='col'>other</th><th scope='col'>its own code found in the other</th>"
-        "<th scope='col'>the other's found in it</th><th scope='col'>shared code, of a whole answer</th></tr>"
+        "<th scope='col'>the other's found in it</th><th scope='col'>shared code, of a whole answer "
+        "(over 100 %: more than a whole answer)</th></tr>"
         f"{rows}</table>"
         if pairs
         else "<p>No pair reaches that share.</p>"
@@ -274,7 +276,10 @@ def similarity_html(
         f"{100 * flag:g} % of its own code (what it adds to the notebook as handed out) in the other, or where "
         f"the two share as much code as {100 * flag:g} % of a whole answer (the master's own code, else the median "
         "submission's), counting passages of about four lines or more (shorter ones two long notebooks share by "
-        "chance), so that code added around a copy does not hide it; either way, only where the two share at "
+        "chance), so that code added around a copy does not hide it (a share of the size of a whole answer, "
+        "not of either notebook: where two share more code than a whole answer holds, as answers longer than "
+        "the master's or code shared beyond the answer do, it is over 100 %); either way, only where the two "
+        "share at "
         f"least {100 * min(MIN_SHARED, flag):.0f} % of a whole answer in all (less, such as the textbook PD and "
         "computed-torque lines alone, is no lead). "
         "Code from the course's notebooks as handed out (the Problem's, the Tasks') is nobody's own. Shared "
