@@ -11,6 +11,7 @@ sandbox, or runs ``--unsafe-no-sandbox``: seconds.
 """
 
 import csv
+import importlib
 import json
 import os
 import stat
@@ -137,6 +138,31 @@ def test_every_notebook_gets_a_row_whatever_the_case_of_its_extension(tmp_path, 
     assert set(_rows(tmp_path / "out_upper")) == {"only.IPYNB"}
 
 
+def test_the_summary_line_counts_in_words_that_agree(tmp_path, capsys):
+    """It read "1 submissions graded ... with 2 at once": one file can only be graded alone."""
+    one = _folder(tmp_path / "one", {"a.ipynb": b"not json"})
+    batch.run_batch(one, SPEC, tmp_path / "out1", jobs=2, seed=2**40, unsafe_no_sandbox=True)
+    line = capsys.readouterr().out.splitlines()[-1]
+    assert line.startswith("1 submission graded in ") and "at once" not in line
+    assert line.endswith(
+        f" s (seed {2**40}); see {tmp_path / 'out1' / 'grades.csv'}; pairs sharing code: 0, in "
+        f"{tmp_path / 'out1' / 'similarity.html'}"
+    )
+    three = _folder(tmp_path / "three", {f"{name}.ipynb": b"not json" for name in "abc"})
+    batch.run_batch(three, SPEC, tmp_path / "out3", jobs=2, seed=2**40, unsafe_no_sandbox=True)
+    assert ", 2 at once (seed" in capsys.readouterr().out.splitlines()[-1]
+
+
+@pytest.mark.parametrize("tool", ["assign", "batch", "canvas", "compare", "rubric"])
+def test_every_instructor_tools_usage_line_names_the_command_to_type(tool, capsys):
+    """batch and canvas said "usage: batch.py", which does not run from the repository root."""
+    module = importlib.import_module(f"labsupport.instructor.{tool}")
+    with pytest.raises(SystemExit) as stop:
+        module.main(["--help"])
+    assert stop.value.code == 0
+    assert capsys.readouterr().out.startswith(f"usage: python -m labsupport.instructor.{tool} ")
+
+
 # --- what is written ----------------------------------------------------------------------------
 
 
@@ -210,7 +236,8 @@ def test_canvas_leaves_a_row_the_grader_failed_on_out_of_the_import(tmp_path):
     )
     assert 1234 in before.student_rows and 1234 not in after.student_rows  # Canvas keeps what it holds
     feedback = result.feedback[1234].read_text(encoding="utf-8")
-    assert "Not scored: error" in feedback and "(0 / " not in feedback and "- p1_ik (- / 3)" in feedback
+    # no score, never a zero; each check's points in the column's (20, the checks' 10: p1_ik's 3 is 6)
+    assert "Not scored: error" in feedback and "(0 / " not in feedback and "- p1_ik (- / 6)" in feedback
 
 
 def test_clean_text_keeps_a_message_on_one_line_without_control_characters():
@@ -455,7 +482,7 @@ def test_the_canvas_rubric_rates_every_named_mistake_at_its_credit(tmp_path):
         ranged = {row[1]: row[3] for row in list(csv.reader(path.read_text(encoding="utf-8").splitlines()))[1:]}
         for c in spec["checks"]:
             ratings = parsed[f"{c['name']}: {c['title']}"]
-            proportional = c["name"] == "p1_ik"  # a share of 10 solutions: a range in Canvas
+            proportional = c["name"] == "p1_ik"  # a share of its solutions: a range in Canvas
             assert ranged[f"{c['name']}: {c['title']}"] == ("true" if proportional else "false")
             top = "Share of full marks" if proportional else "Full marks"
             assert [r[0] for r in ratings][0] == top and ratings[-1][0] == "No marks"

@@ -336,7 +336,26 @@ def test_students_without_a_new_score_are_left_out_of_the_import_never_zero(roun
         assert user not in after.student_rows, user
     assert any("Nguyen, Linh (ID 1237)" in m for m in result.missing)
     assert any("Khan, Omar" in m and "timed out" in m for m in result.not_scored)
-    assert any("Patel, Riya" in m and "EX" in m for m in result.not_scored)
+    assert not any("Patel, Riya" in m for m in result.not_scored)
+
+
+def test_an_excused_student_is_reported_as_excused_with_what_the_notebook_earned(round_trip):
+    """Patel was listed under "Graded but not scored" with "(score 0)" for a notebook that earned
+    full marks, and any unscored row read "score 0" too: the report now says the cell stays
+    excused, and what the notebook earned, for the instructor alone."""
+    result, out, _ = round_trip
+    assert result.excused == [
+        "Patel, Riya: patelriya_1240_50008_problem1_reaching.ipynb: the cell says EX in Canvas and is left so, "
+        "out of the import and without feedback; the notebook earned 20 / 20, should you lift the excuse"
+    ]
+    report = (out / "report.txt").read_text(encoding="utf-8")
+    section = next(part for part in report.split("\n\n") if part.startswith("Excused in Canvas"))
+    assert section.splitlines() == [
+        "Excused in Canvas (graded, but left excused: out of the import, no feedback): 1",
+        f"  - {result.excused[0]}",
+    ]
+    unscored = canvas.excused_note("EX", {"status": "timed out", "scores": {}}, "0", result)
+    assert unscored.endswith("without feedback; its grading gave no score (timed out)") and "earned" not in unscored
 
 
 def test_unmatched_files_are_listed_never_dropped(round_trip):
@@ -382,7 +401,7 @@ def test_report_lists_late_resubmissions_groups_and_scaling(round_trip):
     )
     assert result.notes == [  # and nothing else: no name-differs note for Copy_of_..., no OS files skipped
         "the Problem's checks add up to 10 points and the column to 20: every score is scaled by 20/10, and so "
-        "is rubric_canvas.csv here (the one in batch/ is out of 10)",
+        "are each check's points in the feedback and rubric_canvas.csv here (the one in batch/ is out of 10)",
         "Wong, Mei: the file is named after 'theroboticists', not this student (a group submission?); the grade "
         "is written for this student only",
     ]
@@ -398,8 +417,8 @@ def test_feedback_files_carry_the_score_and_every_message_and_canvas_can_match_t
     text = smith.read_text()
     assert text.splitlines()[0] == "Feedback on problem1 for Smith, Bob"  # outputs.FEEDBACK_HEADER, as the batch's
     assert "Score: 20 / 20" in text and "(10 of the checks' 10 points, scaled)" in text
-    for check in ("p1_ik", "p1_pd", "p1_ct", "p1_reach"):
-        assert f"{check} message for smithbob_1234" in text
+    for check, points in (("p1_ik", 6), ("p1_pd", 4), ("p1_ct", 6), ("p1_reach", 4)):  # in the column's 20
+        assert f"- {check} ({points} / {points}): {check} message for smithbob_1234" in text
     timed_out = result.feedback[1239].read_text()
     assert "Not scored: timed out" in timed_out and timed_out.endswith("\nNotes:\n- the check ran out of time\n")
     assert "Notes:" not in text  # a graded row without notes has no Notes heading
@@ -489,6 +508,23 @@ def test_the_canvas_rubric_beside_the_import_adds_up_to_the_columns_points(round
     tops = [float(row[6]) for row in rows]  # each criterion's first rating: its full marks
     assert sum(tops) == pytest.approx(result.points_possible) == pytest.approx(20.0)
     assert any("rubric_canvas.csv here" in n for n in result.notes)
+
+
+def test_each_checks_points_in_the_feedback_are_the_canvas_rubrics(tmp_path):
+    """The feedback said "Score: 11.25 / 15" and then each check out of the checks' own 10 points
+    ("p1_ik (3 / 3)"), while the rubric students see beside it gives p1_ik 4.5: each check's points
+    are now scaled as the rubric's, so the checks add up to the score."""
+    export = _edited_export(tmp_path, ",10.00,20.00,20.00,", ",10.00,15.00,20.00,")  # 15 points, checks 10
+    out = tmp_path / "out"
+    result = canvas.grade_canvas(FIXTURES / "submissions.zip", export, SPEC, out, grade=fake_grade([]))
+    text = result.feedback[1235].read_text(encoding="utf-8")  # García: 3, 2, 1.5 and 1 of 3, 2, 3 and 2
+    assert "Score: 11.25 / 15" in text and "(7.5 of the checks' 10 points, scaled)" in text
+    got = {line[2:].split(" (")[0]: line.split(" (")[1].split(")")[0] for line in text.splitlines() if line[:2] == "- "}
+    assert got == {"p1_ik": "4.5 / 4.5", "p1_pd": "3 / 3", "p1_ct": "2.25 / 4.5", "p1_reach": "1.5 / 3"}
+    rubric_rows = list(csv.reader(io.StringIO((out / "rubric_canvas.csv").read_text(encoding="utf-8"))))[1:]
+    full_marks = {row[1].split(":")[0]: row[6] for row in rubric_rows}  # each criterion's first rating
+    assert full_marks == {check: shown.split(" / ")[1] for check, shown in got.items()}
+    assert sum(float(shown.split(" / ")[0]) for shown in got.values()) == float(result.scores[1235]) == 11.25
 
 
 def test_a_notebook_of_another_problem_is_named_in_the_report(tmp_path):
@@ -763,6 +799,56 @@ def test_cli_reports_a_bad_column_in_plain_words(tmp_path, capsys):
     assert exit_.value.code == 2
     err = capsys.readouterr().err
     assert "no assignment column 'Problem 9'" in err and "Problem 1: Reaching (4101)" in err
+
+
+def _cli_argv(out: Path, *options: str) -> list[str]:
+    return ["--spec", str(SPEC), str(FIXTURES / "submissions.zip"), "--gradebook", str(EXPORT), "--out", str(out)] + [
+        *options
+    ]
+
+
+def test_a_cli_regrade_says_last_what_moved_and_passes_timeout_to_the_batch(tmp_path, capsys, monkeypatch):
+    """A regrade said that the import, report and zip moved into previous/ before grading, under
+    every "graded ..." line, where the batch's own line was the one seen; and the command had no
+    --timeout, which the batch grader has."""
+    seen = []
+
+    def run_batch(folder, spec_path, out, **options):
+        seen.append(options)
+        return fake_grade([])(folder, spec_path, out)
+
+    monkeypatch.setattr(canvas, "run_batch", run_batch)
+    out = tmp_path / "out"
+    canvas.main(_cli_argv(out))
+    first = capsys.readouterr().out.splitlines()
+    assert first == [
+        f"5 scores written to {out / 'gradebook_import.csv'} (Problem 1: Reaching (4101)); 2 unmatched files, "
+        f"2 students with nothing graded: see {out / 'report.txt'}"
+    ]
+    canvas.main(_cli_argv(out, "--timeout", "30"))
+    second = capsys.readouterr().out.splitlines()
+    assert second == [
+        first[0],
+        "the earlier run's gradebook_import.csv, report.txt, feedback_upload.zip, feedback/ (6 files) are now in "
+        f"{out / 'previous'}",
+    ]
+    assert [options["timeout"] for options in seen] == [900.0, 30.0]  # the batch's default, then --timeout
+    with pytest.raises(SystemExit) as stop:
+        canvas.main(_cli_argv(out, "--timeout", "0"))
+    assert stop.value.code == 2
+    assert "--timeout must be a positive number of seconds, got 0.0" in capsys.readouterr().err
+
+
+def test_an_unzipped_download_is_refused_saying_to_give_the_zip(tmp_path, capsys):
+    """It said "no submissions zip at FOLDER", as if the path were wrong."""
+    folder = tmp_path / "submissions"
+    folder.mkdir()
+    (folder / "smithbob_1234_50001_problem1_reaching.ipynb").write_bytes(fake_notebook(p1_ik=3))
+    with pytest.raises(SystemExit) as stop:
+        canvas.main(["--spec", str(SPEC), str(folder), "--gradebook", str(EXPORT), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and not (tmp_path / "out").exists()
+    assert f"{folder} is a folder: give the zip as Canvas gives it (the assignment's Download Submissions)" in err
 
 
 # --- end to end (slow: grades one real notebook with the batch grader, about a minute) ----------

@@ -260,7 +260,10 @@ def outputs(root: Path = Path(".")) -> dict[Path, str]:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description="Generate student notebooks and autograder specs from the masters.")
+    parser = argparse.ArgumentParser(
+        prog="python -m labsupport.instructor.assign",
+        description="Generate student notebooks and autograder specs from the masters.",
+    )
     parser.add_argument("--check", action="store_true", help="only compare with what is on disk; exit 1 on drift")
     args = parser.parse_args(argv)
     try:

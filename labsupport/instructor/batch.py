@@ -72,6 +72,7 @@ from labsupport.instructor.outputs import (
     BATCH_RESULTS,
     FEEDBACK_HEADER,
     clean_text,
+    counted,
     csv_cell,
     keep_previous,
     keep_private,
@@ -284,9 +285,11 @@ def run_batch(
         shared = {}
         print(f"the shared-code report was not written: {clean_text(str(err))}", file=sys.stderr)
     _write_results(out, spec, rows, record, shared)
+    at_once = min(jobs, len(rows))
     print(
-        f"{len(rows)} submissions graded in {elapsed:.1f} s with {jobs} at once (seed {seed}); "
-        f"see {Path(out) / 'grades.csv'}"
+        f"{counted(len(rows), 'submission')} graded in {elapsed:.1f} s"
+        + (f", {at_once} at once" if at_once > 1 else "")
+        + f" (seed {seed}); see {Path(out) / 'grades.csv'}"
         + (
             f"; pairs sharing code: {similarity.pairs_listed(shared)}, in {Path(out) / 'similarity.html'}"
             if shared
@@ -500,14 +503,9 @@ def check_compare_with(parser: argparse.ArgumentParser, folders: list[Path], sub
             parser.error(f"--compare-with {folder} is the submissions themselves: their notebooks are compared already")
 
 
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(
-        description="Grade a folder of student notebooks into a CSV (outputs are ignored: they need not be executed)."
-    )
-    parser.add_argument("submissions", type=Path, help="folder holding the students' .ipynb files")
-    problem_arguments(parser)
-    parser.add_argument("--out", type=Path, required=True, help="folder for grades.csv, feedback/ and batch.json")
-    parser.add_argument("--jobs", type=int, default=None, help="submissions graded at once (default: CPU count)")
+def timeout_argument(parser: argparse.ArgumentParser) -> None:
+    """``--timeout S``: the wall-clock backstop per submission (the batch's and the Canvas
+    command's; :func:`check_timeout` checks it)."""
     parser.add_argument(
         "--timeout",
         type=float,
@@ -515,6 +513,24 @@ def main(argv=None) -> None:
         help="wall-clock backstop per submission [s] (default 900); a row past it is marked "
         "'timed out: regrade' and gets no score",
     )
+
+
+def check_timeout(parser: argparse.ArgumentParser, timeout: float) -> None:
+    """Stop with what to do when ``--timeout`` is not a positive number of seconds."""
+    if not timeout > 0:
+        parser.error(f"--timeout must be a positive number of seconds, got {timeout}")
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(
+        prog="python -m labsupport.instructor.batch",
+        description="Grade a folder of student notebooks into a CSV (outputs are ignored: they need not be executed).",
+    )
+    parser.add_argument("submissions", type=Path, help="folder holding the students' .ipynb files")
+    problem_arguments(parser)
+    parser.add_argument("--out", type=Path, required=True, help="folder for grades.csv, feedback/ and batch.json")
+    parser.add_argument("--jobs", type=int, default=None, help="submissions graded at once (default: CPU count)")
+    timeout_argument(parser)
     parser.add_argument(
         "--seed",
         type=seed_argument,
@@ -531,8 +547,7 @@ def main(argv=None) -> None:
     spec = chosen_spec(parser, args)
     if args.jobs is not None and args.jobs < 1:
         parser.error(f"--jobs must be at least 1, got {args.jobs}")
-    if not args.timeout > 0:
-        parser.error(f"--timeout must be a positive number of seconds, got {args.timeout}")
+    check_timeout(parser, args.timeout)
     check_submissions_folder(parser, args.submissions)
     check_compare_with(parser, args.compare_with, args.submissions)
     if warning := guessable_seed_warning(args.seed):

@@ -12,7 +12,8 @@ Gradebook's *Export* gives, grades each student's notebook with
 * ``OUT/gradebook_import.csv``: the export's identifying columns (``Student`` to ``Section``)
   and the Problem's column, filled, for the Gradebook's *Import*; the other assignments' columns
   are left out, so a stale export cannot revert grades changed in Canvas since;
-* ``OUT/feedback/<canvas prefix>_feedback.txt``: one file per graded student, and
+* ``OUT/feedback/<canvas prefix>_feedback.txt``: one file per graded student (the score and
+  each check's points in the column's points, as ``rubric_canvas.csv``), and
   ``OUT/feedback_upload.zip`` holding them all, for the assignment's *Re-upload Submissions*;
 * ``OUT/report.txt``: what was graded and what was not, and why (grades in Canvas that the
   import replaces, files that match no student, students with no submission, unreadable files,
@@ -23,7 +24,8 @@ Gradebook's *Export* gives, grades each student's notebook with
 
 A regrade into the same ``OUT`` first moves the earlier run's import, report, zip and feedback
 into ``OUT/previous/``, and the earlier batch's results into ``OUT/batch/previous/``; an even
-earlier run's move one level down (:func:`labsupport.instructor.outputs.keep_previous`).
+earlier run's move one level down (:func:`labsupport.instructor.outputs.keep_previous`). The
+command's last line says what moved.
 
 What Canvas produces, and where each fact comes from (Canvas's own source), is told where it is
 read: :mod:`labsupport.instructor.submissions` for the zip and the re-uploaded feedback files,
@@ -44,7 +46,14 @@ from functools import partial
 from pathlib import Path
 
 from labsupport.instructor.assign import chosen_spec, load_spec, problem_arguments, seed_argument
-from labsupport.instructor.batch import check_compare_with, compare_with_argument, notes_block, run_batch
+from labsupport.instructor.batch import (
+    check_compare_with,
+    check_timeout,
+    compare_with_argument,
+    notes_block,
+    run_batch,
+    timeout_argument,
+)
 from labsupport.instructor.gradebook import (
     Gradebook,
     choose_column,
@@ -61,6 +70,7 @@ from labsupport.instructor.outputs import (
     CANVAS_RESULTS,
     FEEDBACK_HEADER,
     clean_text,
+    counted,
     keep_previous,
     keep_private,
 )
@@ -99,9 +109,11 @@ class CanvasResult:
     resubmissions: list[str] = field(default_factory=list)
     not_graded: list[str] = field(default_factory=list)  #: files of known students left aside
     not_scored: list[str] = field(default_factory=list)  #: graded files whose status gave no score
+    excused: list[str] = field(default_factory=list)  #: graded files of students excused in Canvas, left so
     unreadable: list[str] = field(default_factory=list)  #: files the grader could not read (scored 0), and why
     notes: list[str] = field(default_factory=list)
     warning: str = ""  #: what to check before importing (a column that does not name the Problem)
+    moved: str = ""  #: what of an earlier run in OUT went into OUT/previous/ (``""`` when nothing did)
 
 
 GradeFn = Callable[[Path, Path, Path], list[dict]]
@@ -117,6 +129,7 @@ def grade_canvas(
     grade: GradeFn | None = None,
     seed: int | None = None,
     compare_with: list[Path] | None = None,
+    timeout: float | None = None,
 ) -> CanvasResult:
     """Grade a Canvas zip into a copy of a Canvas gradebook export; writes OUT as the module says.
 
@@ -124,7 +137,8 @@ def grade_canvas(
     (``file``, ``status``, ``scores``, ``messages``, ``notes``); by default it is
     :func:`labsupport.instructor.batch.run_batch` with ``jobs`` and ``seed`` (a fresh secret
     one if None; ``OUT/batch/batch.json`` records it, so ``--seed`` reproduces every grade) and
-    ``compare_with`` (folders of earlier notebooks for the shared-code report).
+    ``compare_with`` (folders of earlier notebooks for the shared-code report), and ``timeout``
+    (its wall-clock backstop per submission [s]; None: the batch grader's default).
     """
     spec_path, out = Path(spec_path), Path(out)
     spec = load_spec(spec_path)
@@ -144,8 +158,8 @@ def grade_canvas(
         result.notes.append(
             f"the Problem's checks add up to {result.maximum:g} points and the column to "
             f"{result.points_possible:g}: every score is scaled by "
-            f"{result.points_possible:g}/{result.maximum:g}, and so is rubric_canvas.csv here (the one in "
-            f"batch/ is out of {result.maximum:g})"
+            f"{result.points_possible:g}/{result.maximum:g}, and so are each check's points in the feedback and "
+            f"rubric_canvas.csv here (the one in batch/ is out of {result.maximum:g})"
         )
     chosen = _select_submissions(Path(submissions_zip), gradebook, spec, result)
     try:
@@ -154,16 +168,25 @@ def grade_canvas(
         raise ValueError(
             f"cannot write the output folder {out} ({err.strerror}): give --out a folder you can write to"
         ) from None
-    keep_previous(out, CANVAS_RESULTS, feedback="feedback")
-    grade = grade or partial(run_batch, jobs=jobs, seed=seed, compare_with=compare_with)
+    result.moved = keep_previous(out, CANVAS_RESULTS, feedback="feedback", quiet=True)
+    batch_options = {"jobs": jobs, "seed": seed, "compare_with": compare_with}
+    if timeout is not None:
+        batch_options["timeout"] = timeout
+    grade = grade or partial(run_batch, **batch_options)
     rows = _grade(Path(submissions_zip), chosen, spec_path, out, result, grade)
     _record_scores(gradebook, col, spec, chosen, rows, out, result)
     (out / "gradebook_import.csv").write_bytes(fill_column(gradebook, col, result.scores).encode("utf-8"))
     _write_feedback_zip(out, result)
     (out / "report.txt").write_text(report_text(gradebook, spec, result), encoding="utf-8")
-    scale = 1.0 if result.points_possible is None else result.points_possible / result.maximum
-    (out / "rubric_canvas.csv").write_text(canvas_rubric_csv(spec, scale), encoding="utf-8")
+    (out / "rubric_canvas.csv").write_text(canvas_rubric_csv(spec, rubric_scale(result)), encoding="utf-8")
     return result
+
+
+def rubric_scale(result: CanvasResult) -> float:
+    """What each check's points are multiplied by in ``rubric_canvas.csv`` and in the feedback: the
+    column's points possible over the checks' total (1 without a Points Possible row), so that the
+    rubric and each student's points per check add up to the grade in the column."""
+    return 1.0 if result.points_possible is None else result.points_possible / result.maximum
 
 
 def _select_submissions(
@@ -303,10 +326,7 @@ def _record_scores(
         score = format_score(scaled_score(total, result.maximum, result.points_possible))
         previous = gradebook.cell(user, col).strip()
         if previous.upper() in ("EX", "N/A"):  # excused: no grade, and no feedback that says one
-            result.not_scored.append(
-                f"{who}: {f.entry}: the cell says {previous} in Canvas and is left so, out of the import and "
-                f"without feedback (score {score})"
-            )
+            result.excused.append(f"{who}: {f.entry}: {excused_note(previous, row, score, result)}")
             continue
         path = out / "feedback" / f"{f.prefix}_feedback.txt"
         path.write_text(feedback_text(who, f, spec, row, total, score, result), encoding="utf-8")
@@ -328,10 +348,23 @@ def _record_scores(
         result.scores[user] = score
 
 
+def excused_note(cell: str, row: dict, score: str, result: CanvasResult) -> str:
+    """What the report says of an excused student's graded notebook: that the cell is left as it
+    is, and, for the instructor alone, what the notebook earned (or that its grading gave no score)."""
+    if row.get("status") in SCORED_STATUSES:
+        out_of = result.points_possible if result.points_possible is not None else result.maximum
+        earned = f"the notebook earned {score} / {format_score(out_of)}, should you lift the excuse"
+    else:
+        earned = f"its grading gave no score ({row.get('status')})"
+    return f"the cell says {cell} in Canvas and is left so, out of the import and without feedback; {earned}"
+
+
 def feedback_text(
     who: str, f: SubmissionFile, spec: dict, row: dict, total: float, score: str, result: CanvasResult
 ) -> str:
-    """One student's feedback: the score in Canvas's points, then each check's points and message."""
+    """One student's feedback: the score in Canvas's points, then each check's points and message,
+    in the column's points too (:func:`rubric_scale`, as ``rubric_canvas.csv``): what the rubric
+    students see says a check is worth is what their feedback says it is worth."""
     lines = [
         f"{FEEDBACK_HEADER}{spec['problem']} for {clean_text(who)}",
         f"File graded: {clean_text(f.original)}" + ("  (late)" if f.late else ""),
@@ -345,11 +378,12 @@ def feedback_text(
     else:
         lines.append(f"Not scored: {row.get('status')}; your instructor will grade it again.")
     lines.append("")
+    scale = rubric_scale(result)
     for c in spec["checks"]:
         got = row["scores"].get(c["name"])
-        shown = "-" if got is None else format_score(float(got))
+        shown = "-" if got is None else format_score(float(got) * scale)
         message = clean_text(row.get("messages", {}).get(c["name"], "not graded"))
-        lines.append(f"- {c['name']} ({shown} / {format_score(float(c['points']))}): {message}")
+        lines.append(f"- {c['name']} ({shown} / {format_score(float(c['points']) * scale)}): {message}")
     return "\n".join(lines + notes_block(row, spec)) + "\n"
 
 
@@ -377,6 +411,7 @@ def report_text(gradebook: Gradebook, spec: dict, result: CanvasResult) -> str:
         ("Files that match no student of the gradebook (not graded)", result.unmatched),
         ("Students with nothing graded (left out of the import: Canvas keeps what it holds)", result.missing),
         ("Graded but not scored (left out of the import: Canvas keeps what it holds)", result.not_scored),
+        ("Excused in Canvas (graded, but left excused: out of the import, no feedback)", result.excused),
         ("Unreadable files (scored 0: ask the student for a notebook that opens, then grade again)", result.unreadable),
         ("Late submissions (graded; any late penalty is yours to apply)", result.late),
         ("Resubmissions graded (Canvas renames a re-uploaded file name-1, name-2, ...)", result.resubmissions),
@@ -396,7 +431,8 @@ def report_text(gradebook: Gradebook, spec: dict, result: CanvasResult) -> str:
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(
-        description="Grade a Canvas 'Download Submissions' zip into a Canvas gradebook export, ready to import."
+        prog="python -m labsupport.instructor.canvas",
+        description="Grade a Canvas 'Download Submissions' zip into a Canvas gradebook export, ready to import.",
     )
     parser.add_argument("submissions", type=Path, help="the zip that Canvas's Download Submissions gives")
     problem_arguments(parser)
@@ -406,6 +442,7 @@ def main(argv=None) -> None:
         "--out", type=Path, required=True, help="folder for gradebook_import.csv, feedback/, report.txt"
     )
     parser.add_argument("--jobs", type=int, default=None, help="submissions graded at once (default: CPU count)")
+    timeout_argument(parser)
     parser.add_argument(
         "--seed",
         type=seed_argument,
@@ -418,6 +455,13 @@ def main(argv=None) -> None:
     spec = chosen_spec(parser, args)
     if args.jobs is not None and args.jobs < 1:
         parser.error(f"--jobs must be at least 1, got {args.jobs}")
+    check_timeout(parser, args.timeout)
+    if args.submissions.is_dir():
+        parser.error(
+            f"{args.submissions} is a folder: give the zip as Canvas gives it (the assignment's Download "
+            "Submissions), not unzipped; files unzipped from it can be zipped again, with their names as they are. "
+            "For a folder of notebooks without Canvas's names, run python -m labsupport.instructor.batch"
+        )
     for path, what in ((args.submissions, "submissions zip"), (args.gradebook, "gradebook")):
         if not Path(path).is_file():
             parser.error(f"no {what} at {path}")
@@ -431,16 +475,19 @@ def main(argv=None) -> None:
             args.jobs,
             seed=args.seed,
             compare_with=args.compare_with,
+            timeout=args.timeout,
         )
     except ValueError as err:
         parser.error(str(err))
     if result.warning:
         print(result.warning)
     print(
-        f"{len(result.scores)} scores written to {args.out / 'gradebook_import.csv'} "
-        f"({result.column}); {len(result.unmatched)} unmatched files, {len(result.missing)} students "
-        f"with nothing graded: see {args.out / 'report.txt'}"
+        f"{counted(len(result.scores), 'score')} written to {args.out / 'gradebook_import.csv'} "
+        f"({result.column}); {counted(len(result.unmatched), 'unmatched file')}, "
+        f"{counted(len(result.missing), 'student')} with nothing graded: see {args.out / 'report.txt'}"
     )
+    if result.moved:
+        print(result.moved)
 
 
 if __name__ == "__main__":

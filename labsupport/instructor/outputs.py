@@ -88,16 +88,17 @@ def feedback_files(folder: Path) -> list[Path]:
     return found
 
 
-def keep_previous(folder: Path, names: tuple[str, ...], feedback: str | None = None, quiet: bool = False) -> None:
+def keep_previous(folder: Path, names: tuple[str, ...], feedback: str | None = None, quiet: bool = False) -> str:
     """Move the files ``names`` that an earlier run wrote in ``folder``, and the feedback files it
     wrote in ``folder/feedback`` (:func:`feedback_files`) when a ``feedback`` folder name is given,
     into ``folder/previous/``, after moving what an even earlier run left there into
     ``previous/previous/`` (and so on): a regrade into the same folder loses nothing of any run,
-    and leaves nothing of the earlier run beside its own results."""
+    and leaves nothing of the earlier run beside its own results. Returns the line that says what
+    moved where (``""`` when nothing did), and prints it unless ``quiet``."""
     earlier = [folder / name for name in names if (folder / name).is_file()]
     fed_back = feedback_files(folder / feedback) if feedback else []
     if not earlier and not fed_back:
-        return
+        return ""
     previous = folder / "previous"
     if previous.is_dir():  # an even earlier run's: one level down
         keep_previous(previous, names, feedback, quiet=True)
@@ -109,10 +110,17 @@ def keep_previous(folder: Path, names: tuple[str, ...], feedback: str | None = N
         (previous / feedback).mkdir(exist_ok=True)
         for path in fed_back:
             os.replace(path, previous / feedback / path.name)
+    moved = [p.name for p in earlier] + ([f"{feedback}/ ({counted(len(fed_back), 'file')})"] if fed_back else [])
+    older = " (the runs before it: in previous/previous, and so on)" if (previous / "previous").is_dir() else ""
+    message = f"the earlier run's {', '.join(moved)} are now in {previous}{older}"
     if not quiet:
-        moved = [p.name for p in earlier] + ([f"{feedback}/ ({len(fed_back)} files)"] if fed_back else [])
-        older = " (the runs before it: in previous/previous, and so on)" if (previous / "previous").is_dir() else ""
-        print(f"the earlier run's {', '.join(moved)} are now in {previous}{older}")
+        print(message)
+    return message
+
+
+def counted(count: int, noun: str) -> str:
+    """``count`` and ``noun``, plural unless ``count`` is 1: ``"1 submission"``, ``"2 submissions"``."""
+    return f"{count} {noun}{'' if count == 1 else 's'}"
 
 
 def keep_private() -> None:
