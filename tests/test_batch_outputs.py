@@ -642,6 +642,22 @@ def test_feedback_notes_leave_out_the_checks_own_notes():
     assert batch.feedback_text("Smith, Bob", spec, row).endswith("\nNotes:\n- this notebook wrote files: notes.txt\n")
     assert batch.notes_block(row | {"notes": ["p1_ik: the probe's own detail"]}, spec) == []
     assert "Notes:" not in batch.feedback_text("Smith, Bob", spec, row | {"notes": []})
+    assert batch.CELL_COUNTING not in batch.feedback_text("Smith, Bob", spec, row)
+
+
+def test_feedback_that_names_a_cell_by_number_says_how_cells_are_counted():
+    """Jupyter and Colab number no cells, so a note or a message that names "cell 13 (...)" is
+    followed once by how the grader counts them; the note alone, or the message alone, is enough."""
+    spec = json.loads(SPEC.read_text(encoding="utf-8"))
+    cell = "cell 13 ('def ct_joint_torque(model, data, q_d, Kp…') raised SyntaxError"
+    row = {"status": "graded", "scores": dict.fromkeys(CHECKS, 0.0), "messages": dict.fromkeys(CHECKS, "wrong")}
+    assert batch.notes_block(row | {"notes": [cell]}, spec) == ["", "Notes:", f"- {cell}", "", batch.CELL_COUNTING]
+    in_message = row | {
+        "notes": [],
+        "messages": {**row["messages"], "p1_ct": f"ct_joint_torque is not defined: its {cell}"},
+    }
+    text = batch.feedback_text("Smith, Bob", spec, in_message)
+    assert text.count(batch.CELL_COUNTING) == 1 and text.endswith(batch.CELL_COUNTING + "\n")
 
 
 def test_an_unscored_rows_feedback_gives_each_check_its_reason():

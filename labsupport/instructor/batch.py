@@ -53,6 +53,7 @@ import io
 import json
 import multiprocessing
 import os
+import re
 import secrets
 import subprocess
 import sys
@@ -156,12 +157,22 @@ def feedback_text(name: str, spec: dict, row: dict) -> str:
     return "\n".join(lines + notes_block(row, spec)) + "\n"
 
 
+#: Said once under a feedback that names a cell by its number: Jupyter and Colab show none.
+CELL_COUNTING = "(Cells are counted from the top of the notebook, Markdown cells too, and named by their first line.)"
+_NAMED_CELL = re.compile(r"\bcell \d+ \(")
+
+
 def notes_block(row: dict, spec: dict) -> list[str]:
     """The lines that end a feedback file: the row's notes that belong to no check (a note that
     starts with a check's name, ``"p1_ik: ..."``, is that check's, and its message says it), under
-    a "Notes:" heading; none when there are none."""
+    a "Notes:" heading, and :data:`CELL_COUNTING` where a note or a message names a cell by its
+    number; none when there is neither."""
     notes = [n for n in row.get("notes", []) if not any(n.startswith(c["name"] + ":") for c in spec["checks"])]
-    return ["", "Notes:"] + [f"- {clean_text(n)}" for n in notes] if notes else []
+    lines = ["", "Notes:"] + [f"- {clean_text(n)}" for n in notes] if notes else []
+    said = [*row.get("notes", []), *row.get("messages", {}).values()]
+    if any(isinstance(text, str) and _NAMED_CELL.search(text) for text in said):
+        lines += ["", CELL_COUNTING]
+    return lines
 
 
 def _grade_row(payload, spec: dict, seed: int, layout, unsafe_root, budget: judge.Budget) -> dict:
