@@ -27,7 +27,7 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from labsupport.instructor import canvas, gradebook, outputs, submissions
+from labsupport.instructor import canvas, gradebook, isolation, outputs, submissions
 
 ROOT = Path(__file__).resolve().parents[1]
 FIXTURES = ROOT / "tests" / "fixtures" / "canvas"
@@ -984,3 +984,20 @@ def test_a_title_of_the_problem_alone_is_not_flagged():
     """The id in parentheses is not part of the title: "Problem 1 (4101)" names problem1."""
     assert gradebook.column_warning("Problem 1 (4101)", "problem1") == ""
     assert gradebook.column_warning("Problem 10 (4110)", "problem1").startswith("Check first")
+
+
+def test_a_sandbox_that_cannot_start_ends_the_command_with_what_to_do(tmp_path, capsys, monkeypatch):
+    """Where bubblewrap cannot run, the Canvas command ends as the batch does, with its message and
+    exit status 2, where it ended in a traceback."""
+
+    def run_batch(folder, spec_path, out, **options):
+        raise isolation.SandboxUnavailable("bubblewrap (bwrap) is not installed: apt install bubblewrap")
+
+    monkeypatch.setattr(canvas, "run_batch", run_batch)
+    with pytest.raises(SystemExit) as stop:
+        canvas.main(_cli_argv(tmp_path / "out"))
+    assert stop.value.code == 2
+    assert capsys.readouterr().err == (
+        "python -m labsupport.instructor.canvas: cannot grade: bubblewrap (bwrap) is not installed: apt install "
+        "bubblewrap\n"
+    )

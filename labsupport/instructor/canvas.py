@@ -45,6 +45,7 @@ from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 
+from labsupport.instructor import isolation
 from labsupport.instructor.assign import chosen_spec, load_spec, problem_arguments, seed_argument
 from labsupport.instructor.batch import (
     check_compare_with,
@@ -479,6 +480,8 @@ def main(argv=None) -> None:
         )
     except ValueError as err:
         parser.error(str(err))
+    except isolation.SandboxUnavailable as err:  # as the batch says it: what to do, no traceback
+        parser.exit(2, f"{parser.prog}: cannot grade: {err}\n")
     if result.warning:
         print(result.warning)
     print(
