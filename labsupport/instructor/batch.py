@@ -514,9 +514,10 @@ def check_compare_with(parser: argparse.ArgumentParser, folders: list[Path], sub
             parser.error(f"--compare-with {folder} is the submissions themselves: their notebooks are compared already")
 
 
-def timeout_argument(parser: argparse.ArgumentParser) -> None:
-    """``--timeout S``: the wall-clock backstop per submission (the batch's and the Canvas
-    command's; :func:`check_timeout` checks it)."""
+def grading_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--jobs N`` and ``--timeout S``, the batch's and the Canvas command's alike
+    (:func:`check_grading_arguments` checks them)."""
+    parser.add_argument("--jobs", type=int, default=None, help="submissions graded at once (default: CPU count)")
     parser.add_argument(
         "--timeout",
         type=float,
@@ -526,10 +527,13 @@ def timeout_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def check_timeout(parser: argparse.ArgumentParser, timeout: float) -> None:
-    """Stop with what to do when ``--timeout`` is not a positive number of seconds."""
-    if not timeout > 0:
-        parser.error(f"--timeout must be a positive number of seconds, got {timeout}")
+def check_grading_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Stop with what to do when ``--jobs`` is below 1 or ``--timeout`` is not a positive number
+    of seconds."""
+    if args.jobs is not None and args.jobs < 1:
+        parser.error(f"--jobs must be at least 1, got {args.jobs}")
+    if not args.timeout > 0:
+        parser.error(f"--timeout must be a positive number of seconds, got {args.timeout}")
 
 
 def main(argv=None) -> None:
@@ -540,8 +544,7 @@ def main(argv=None) -> None:
     parser.add_argument("submissions", type=Path, help="folder holding the students' .ipynb files")
     problem_arguments(parser)
     parser.add_argument("--out", type=Path, required=True, help="folder for grades.csv, feedback/ and batch.json")
-    parser.add_argument("--jobs", type=int, default=None, help="submissions graded at once (default: CPU count)")
-    timeout_argument(parser)
+    grading_arguments(parser)
     parser.add_argument(
         "--seed",
         type=seed_argument,
@@ -556,9 +559,7 @@ def main(argv=None) -> None:
     compare_with_argument(parser)
     args = parser.parse_args(argv)
     spec = chosen_spec(parser, args)
-    if args.jobs is not None and args.jobs < 1:
-        parser.error(f"--jobs must be at least 1, got {args.jobs}")
-    check_timeout(parser, args.timeout)
+    check_grading_arguments(parser, args)
     check_submissions_folder(parser, args.submissions)
     check_compare_with(parser, args.compare_with, args.submissions)
     if warning := guessable_seed_warning(args.seed):

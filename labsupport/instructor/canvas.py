@@ -49,11 +49,11 @@ from labsupport.instructor import isolation
 from labsupport.instructor.assign import chosen_spec, load_spec, problem_arguments, seed_argument
 from labsupport.instructor.batch import (
     check_compare_with,
-    check_timeout,
+    check_grading_arguments,
     compare_with_argument,
+    grading_arguments,
     notes_block,
     run_batch,
-    timeout_argument,
 )
 from labsupport.instructor.gradebook import (
     Gradebook,
@@ -442,8 +442,7 @@ def main(argv=None) -> None:
     parser.add_argument(
         "--out", type=Path, required=True, help="folder for gradebook_import.csv, feedback/, report.txt"
     )
-    parser.add_argument("--jobs", type=int, default=None, help="submissions graded at once (default: CPU count)")
-    timeout_argument(parser)
+    grading_arguments(parser)
     parser.add_argument(
         "--seed",
         type=seed_argument,
@@ -454,9 +453,7 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     check_compare_with(parser, args.compare_with, Path(args.submissions))
     spec = chosen_spec(parser, args)
-    if args.jobs is not None and args.jobs < 1:
-        parser.error(f"--jobs must be at least 1, got {args.jobs}")
-    check_timeout(parser, args.timeout)
+    check_grading_arguments(parser, args)
     if args.submissions.is_dir():
         parser.error(
             f"{args.submissions} is a folder: give the zip as Canvas gives it (the assignment's Download "
