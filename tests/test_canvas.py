@@ -829,8 +829,8 @@ def test_a_cli_regrade_says_last_what_moved_and_passes_timeout_to_the_batch(tmp_
     second = capsys.readouterr().out.splitlines()
     assert second == [
         first[0],
-        "the earlier run's gradebook_import.csv, report.txt, feedback_upload.zip, feedback/ (6 files) are now in "
-        f"{out / 'previous'}",
+        "the earlier run's gradebook_import.csv, report.txt, feedback_upload.zip, rubric_canvas.csv, feedback/ "
+        f"(6 files) are now in {out / 'previous'}",
     ]
     assert [options["timeout"] for options in seen] == [900.0, 30.0]  # the batch's default, then --timeout
     with pytest.raises(SystemExit) as stop:

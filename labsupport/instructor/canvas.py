@@ -22,7 +22,7 @@ Gradebook's *Export* gives, grades each student's notebook with
   (``rubric.md``, and ``rubric_canvas.csv`` for the course's *Rubrics → Import Rubric*), and
   the pairs of students who share code (``similarity.html``: :mod:`labsupport.instructor.similarity`).
 
-A regrade into the same ``OUT`` first moves the earlier run's import, report, zip and feedback
+A regrade into the same ``OUT`` first moves the earlier run's import, report, zip, rubric and feedback
 into ``OUT/previous/``, and the earlier batch's results into ``OUT/batch/previous/``; an even
 earlier run's move one level down (:func:`labsupport.instructor.outputs.keep_previous`). The
 command's last line says what moved.

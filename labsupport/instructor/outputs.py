@@ -22,11 +22,13 @@ _BIDI_CONTROLS = frozenset("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u20
 FEEDBACK_HEADER = "Feedback on "
 
 #: The files a batch writes that a regrade into the same folder moves into ``previous/`` (with
-#: the feedback files it wrote: :func:`keep_previous`'s ``feedback``).
-BATCH_RESULTS = ("grades.csv", "batch.json", "similarity.csv", "similarity.html")
+#: the feedback files it wrote: :func:`keep_previous`'s ``feedback``); the rubric too, whose
+#: points the earlier grades were given in.
+BATCH_RESULTS = ("grades.csv", "batch.json", "similarity.csv", "similarity.html", "rubric.md", "rubric_canvas.csv")
 
-#: The same for a Canvas run: the import, the report and the feedback zip.
-CANVAS_RESULTS = ("gradebook_import.csv", "report.txt", "feedback_upload.zip")
+#: The same for a Canvas run: the import, the report, the feedback zip, and the rubric scaled to
+#: the column's points possible then.
+CANVAS_RESULTS = ("gradebook_import.csv", "report.txt", "feedback_upload.zip", "rubric_canvas.csv")
 
 
 def clean_text(text: str, limit: int = MAX_MESSAGE_CHARS) -> str:
