@@ -1001,3 +1001,29 @@ def test_a_sandbox_that_cannot_start_ends_the_command_with_what_to_do(tmp_path, 
         "python -m labsupport.instructor.canvas: cannot grade: bubblewrap (bwrap) is not installed: apt install "
         "bubblewrap\n"
     )
+
+
+@pytest.mark.parametrize("points_possible", ["6.66", "13.33", "7.77", "9.99", "6.67"])
+def test_each_checks_points_in_the_feedback_add_up_to_the_score(tmp_path, points_possible):
+    """Each check's points, scaled to the column and rounded to hundredths one by one, could add
+    up to a hundredth more or less than the score above them (García's 3, 2, 1.5 and 1 in a
+    column of 6.66 points: 2, 1.33, 1 and 0.67 under a score of 4.99). They are now rounded so
+    that they add up to it, the largest remainders rounded up first."""
+    export = _edited_export(tmp_path, ",10.00,20.00,20.00,", f",10.00,{points_possible},20.00,")
+    out = tmp_path / "out"
+    result = canvas.grade_canvas(FIXTURES / "submissions.zip", export, SPEC, out, grade=fake_grade([]))
+    rubric_rows = list(csv.reader(io.StringIO((out / "rubric_canvas.csv").read_text(encoding="utf-8"))))[1:]
+    full_marks = [row[6] for row in rubric_rows]  # each criterion's first rating
+    names = [row[1].split(":")[0] for row in rubric_rows]
+    assert round(sum(float(p) for p in full_marks), 2) == float(points_possible)
+    scored = 0
+    for user, path in result.feedback.items():
+        lines = path.read_text(encoding="utf-8").splitlines()
+        checks = [line for line in lines if line[:2] == "- " and line[2:].split(" (")[0] in names]
+        shown = [line.split(" (")[1].split(")")[0].split(" / ") for line in checks]
+        assert [most for _, most in shown] == full_marks  # the feedback's full marks are the rubric's
+        if user in result.scores:
+            score = next(line for line in lines if line.startswith("Score: ")).split()[1]
+            assert round(sum(float(got) for got, _ in shown), 2) == float(score) == float(result.scores[user]), lines
+            scored += 1
+    assert scored >= 3

@@ -23,6 +23,7 @@ MODULES = {
     "labsupport.plants": 2,
     "labsupport.sim": 5,
     "labsupport.actuators": 5,
+    "labsupport.instructor.gradebook": 1,
 }
 
 

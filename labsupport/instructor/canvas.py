@@ -57,6 +57,7 @@ from labsupport.instructor.batch import (
 )
 from labsupport.instructor.gradebook import (
     Gradebook,
+    apportion,
     choose_column,
     column_warning,
     decimal_point,
@@ -380,11 +381,14 @@ def feedback_text(
         lines.append(f"Not scored: {row.get('status')}; your instructor will grade it again.")
     lines.append("")
     scale = rubric_scale(result)
-    for c in spec["checks"]:
-        got = row["scores"].get(c["name"])
-        shown = "-" if got is None else format_score(float(got) * scale)
+    full = apportion([float(c["points"]) * scale for c in spec["checks"]])  # as rubric_canvas.csv's
+    got = [row["scores"].get(c["name"]) for c in spec["checks"]]
+    if None not in got and row.get("status") in SCORED_STATUSES:  # adding up to the score above
+        got = apportion([float(g) * scale for g in got], float(score))
+    for c, earned, most in zip(spec["checks"], got, full, strict=True):
+        shown = "-" if earned is None else format_score(float(earned))
         message = clean_text(row.get("messages", {}).get(c["name"], "not graded"))
-        lines.append(f"- {c['name']} ({shown} / {format_score(float(c['points']) * scale)}): {message}")
+        lines.append(f"- {c['name']} ({shown} / {format_score(most)}): {message}")
     return "\n".join(lines + notes_block(row, spec)) + "\n"
 
 

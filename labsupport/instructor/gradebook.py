@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -259,6 +260,24 @@ def format_score(value: float) -> str:
     """A score as Canvas shows it: at most two decimals, no trailing zeros (``7.5``, ``15``)."""
     text = f"{value:.2f}".rstrip("0").rstrip(".")
     return "0" if text in ("-0", "") else text
+
+
+def apportion(parts: list[float], total: float | None = None) -> list[float]:
+    """``parts`` rounded to hundredths so that they add up to ``total`` (their sum by default)
+    rounded to hundredths: each is rounded down, then those with the largest remainders up, one
+    hundredth each, until the sum is reached (Hamilton's method). Rounded one by one, the checks'
+    points scaled to a Canvas column could add up to a hundredth more or less than the score.
+
+    >>> apportion([4 / 3, 4 / 3, 4 / 3], 4.0)
+    [1.34, 1.33, 1.33]
+    """
+    cents = [100 * p for p in parts]
+    kept = [math.floor(c + 1e-6) for c in cents]  # 1e-6: a 2.0 held as 1.99999... is 2
+    target = round(100 * (sum(parts) if total is None else total))
+    largest_remainder_first = sorted(range(len(cents)), key=lambda k: kept[k] - cents[k])
+    for k in largest_remainder_first[: max(0, target - sum(kept))]:
+        kept[k] += 1
+    return [k / 100 for k in kept]
 
 
 def scaled_score(total: float, maximum: float, points_possible: float | None) -> float:

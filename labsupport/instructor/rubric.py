@@ -35,6 +35,7 @@ from labsupport import __version__
 from labsupport.grading import PUBLIC_SEED, problem1, problem2
 from labsupport.grading.rules import FORBIDDEN
 from labsupport.instructor.assign import chosen_spec, load_spec, problem_arguments
+from labsupport.instructor.gradebook import apportion
 from labsupport.instructor.judge import DEFAULT_BUDGET
 
 _MODULES = (problem1, problem2)
@@ -143,13 +144,16 @@ def canvas_rubric_csv(spec: dict, scale: float = 1.0) -> str:
     """The rubric of the Problem an autograder spec describes, as a CSV for Canvas's *Import
     Rubric*: one criterion per check, named ``<check>: <title>``, described by how it scores,
     with the ratings of :func:`canvas_ratings`; every point times ``scale`` (the Canvas column's
-    points possible over the checks' total, so the rubric adds up to the column's grade)."""
+    points possible over the checks' total, so the rubric adds up to the column's grade), each
+    criterion's points rounded to hundredths so that they add up to it
+    (:func:`labsupport.instructor.gradebook.apportion`)."""
     rows = []
-    for c in spec["checks"]:
+    full = apportion([float(c["points"]) * scale for c in spec["checks"]])  # adding up to the column's
+    for c, most in zip(spec["checks"], full, strict=True):
         module = _module_of(c["name"])
         ranged = "true" if c["name"] in module.PROPORTIONAL else "false"  # any share of the points
         row = [f"{spec['problem']}: grading rubric", f"{c['name']}: {c['title']}", module.SCORING[c["name"]], ranged]
-        for name, description, points in canvas_ratings(c["name"], float(c["points"]) * scale):
+        for name, description, points in canvas_ratings(c["name"], most):
             row += [name, description, f"{round(points, 2):g}"]
         rows.append(row)
     most = max(len(row) for row in rows)
