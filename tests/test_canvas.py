@@ -1003,6 +1003,33 @@ def test_a_sandbox_that_cannot_start_ends_the_command_with_what_to_do(tmp_path, 
     )
 
 
+def test_a_regrade_that_cannot_grade_still_says_where_the_earlier_run_went(tmp_path, capsys, monkeypatch):
+    """A regrade moves the earlier run into previous/ before it grades. When the grading then
+    failed (here bubblewrap cannot start), the error was all the command said, and the earlier
+    import seemed lost: the error now ends with where it went."""
+    out = tmp_path / "out"
+    monkeypatch.setattr(
+        canvas, "run_batch", lambda folder, spec_path, out, **options: fake_grade([])(folder, spec_path, out)
+    )
+    canvas.main(_cli_argv(out))
+    capsys.readouterr()
+
+    def run_batch(folder, spec_path, out, **options):
+        raise isolation.SandboxUnavailable("bubblewrap (bwrap) is not installed: apt install bubblewrap")
+
+    monkeypatch.setattr(canvas, "run_batch", run_batch)
+    with pytest.raises(SystemExit) as stop:
+        canvas.main(_cli_argv(out))
+    assert stop.value.code == 2
+    assert capsys.readouterr().err.splitlines() == [
+        "python -m labsupport.instructor.canvas: cannot grade: bubblewrap (bwrap) is not installed: apt install "
+        "bubblewrap",
+        "(the earlier run's gradebook_import.csv, report.txt, feedback_upload.zip, rubric_canvas.csv, feedback/ "
+        f"(6 files) are now in {out / 'previous'})",
+    ]
+    assert (out / "previous" / "gradebook_import.csv").is_file()
+
+
 @pytest.mark.parametrize("points_possible", ["6.66", "13.33", "7.77", "9.99", "6.67"])
 def test_each_checks_points_in_the_feedback_add_up_to_the_score(tmp_path, points_possible):
     """Each check's points, scaled to the column and rounded to hundredths one by one, could add

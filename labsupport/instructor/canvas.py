@@ -175,7 +175,12 @@ def grade_canvas(
     if timeout is not None:
         batch_options["timeout"] = timeout
     grade = grade or partial(run_batch, **batch_options)
-    rows = _grade(Path(submissions_zip), chosen, spec_path, out, result, grade)
+    try:
+        rows = _grade(Path(submissions_zip), chosen, spec_path, out, result, grade)
+    except (ValueError, isolation.SandboxUnavailable) as err:  # the earlier run was moved all the same
+        if not result.moved:
+            raise
+        raise type(err)(f"{err}\n({result.moved})") from err
     _record_scores(gradebook, col, spec, chosen, rows, out, result)
     (out / "gradebook_import.csv").write_bytes(fill_column(gradebook, col, result.scores).encode("utf-8"))
     _write_feedback_zip(out, result)
