@@ -53,8 +53,8 @@ def glue(name: str, value: Any, display: bool = False) -> None:
 
 def law_source(fn: Callable) -> str:
     """The source of ``fn`` as ``inspect.getsource`` gives it, less its docstring: the code a
-    page shows under the law's equation, which the page renders in place of the docstring's
-    reStructuredText. A ``ValueError`` for a function without a source file."""
+    page shows under the law's equation, which the page states in its own Markdown. A
+    ``ValueError`` for a function without a source file."""
     try:
         source = inspect.getsource(fn)
     except (TypeError, OSError):
@@ -73,8 +73,8 @@ def law_source(fn: Callable) -> str:
 
 def show_law(fn: Callable) -> None:
     """Display the code of a control law, :func:`law_source` (its source less the docstring,
-    whose equation the page shows rendered just above), as a highlighted Python block in the
-    notebook and on the built page.
+    whose equation the page writes out in Markdown just above), as a highlighted Python block
+    in the notebook and on the built page.
 
     The block is Markdown holding a fenced ``python`` code block: Jupyter and Colab highlight
     it, and MyST-NB renders it as the book's ordinary highlighted code block.

@@ -4,7 +4,8 @@ A Task notebook runs laws it imports from ``labsupport.controllers``; each of th
 on the page with ``labsupport.book.show_law``, so the built HTML holds a highlighted code block
 with that function's ``def``. The code comes from the package itself, so it is compared with
 the installed function's source less its docstring (``labsupport.book.law_source``; the page
-renders the docstring's equation above the code): page and package cannot disagree.
+writes the law's equation in Markdown above the code): page and package cannot disagree on the
+code.
 
 Every notebook page also reads without scrolling sideways at common window widths: the laws,
 the unfolded code cells and the printouts; and so do the display equations of every page.
