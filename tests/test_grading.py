@@ -108,6 +108,17 @@ def test_assign_rejects_a_check_the_grader_could_not_add_up(change, words):
         assign.student_notebook(master, "problem1 master")
 
 
+def test_assign_names_a_master_that_is_not_json(tmp_path):
+    """A master left with a merge's conflict markers stopped assign with nbformat's traceback; it
+    now names the file and says what to do."""
+    masters = tmp_path / assign.MASTERS
+    masters.mkdir(parents=True)
+    text = (ROOT / assign.MASTERS / "problem1_reaching.ipynb").read_text(encoding="utf-8")
+    (masters / "problem1_reaching.ipynb").write_text("<<<<<<< HEAD\n" + text, encoding="utf-8")
+    with pytest.raises(assign.MasterError, match=r"problem1_reaching.ipynb is not a notebook's JSON \(NotJSONError"):
+        assign.outputs(tmp_path)
+
+
 @pytest.mark.parametrize("name", ["problem1_reaching", "problem2_tracking"])
 def test_student_notebook_runs_and_reports_not_implemented(name, tmp_path):
     nb = nbformat.read(str(ROOT / "notebooks" / f"{name}.ipynb"), as_version=4)

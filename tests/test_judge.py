@@ -561,3 +561,19 @@ def test_the_cells_cpu_time_together_counts_from_the_processs_start(start, check
         "c_double: double is not defined: its cell 3 ('def double(x):') not run, nor any cell after it (the cells "
         "had used up their cpu time together)",
     ], row["notes"]
+
+
+def test_the_sandbox_server_run_by_hand_says_what_it_is_and_stops(tmp_path):
+    """``python -m labsupport.instructor.sandbox --help`` printed nothing and hung: the server
+    silences its output, lists every file under the working folder, then waits for the judge's
+    requests on stdin. Given arguments (or a terminal), it now says what it is and exits."""
+    done = subprocess.run(
+        [sys.executable, "-m", "labsupport.instructor.sandbox", "--help"],
+        cwd=tmp_path,
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 1 and done.stdout == ""
+    assert "not a command: to grade, run python -m labsupport.instructor.batch --help" in done.stderr

@@ -250,8 +250,14 @@ def outputs(root: Path = Path(".")) -> dict[Path, str]:
     if not masters:
         raise MasterError(f"no master notebooks in {root / MASTERS}: run from the repository root")
     for path in masters:
-        master = nbformat.read(str(path), as_version=4)
         rel = path.relative_to(root).as_posix()
+        try:
+            master = nbformat.read(str(path), as_version=4)
+        except (ValueError, UnicodeDecodeError) as err:  # NotJSONError is a ValueError
+            raise MasterError(
+                f"{rel} is not a notebook's JSON ({type(err).__name__}: {str(err)[:200]}): if a merge left "
+                "conflict markers (<<<<<<<) in it, resolve them, then run this again"
+            ) from None
         student = student_notebook(master, rel)
         sp = spec(master, rel)
         files[root / sp["student"]] = render(student)

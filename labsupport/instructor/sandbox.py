@@ -418,4 +418,9 @@ def main() -> None:
 
 
 if __name__ == "__main__":
+    if sys.argv[1:] or sys.stdin.isatty():  # a person, not the judge, which starts it on pipes
+        sys.exit(
+            "labsupport.instructor.sandbox is the server the batch grader starts in each submission's sandbox, "
+            "not a command: to grade, run python -m labsupport.instructor.batch --help (or ...canvas --help)"
+        )
     main()
