@@ -17,6 +17,7 @@ Modules, one idea each:
 ``grading``               in-notebook checks of the Problems (batch grading: labsupport.instructor)
 ``plots``                 the figure layouts the notebooks share
 ``book``                  glue and show_law: prose numbers and law code come from the package
+``gl``                    MuJoCo's OpenGL backend, chosen on import (EGL, GLFW, OSMesa)
 ``validate``              the one input validator (shapes, finite values, signs)
 ========================  ===============================================================
 

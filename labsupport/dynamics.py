@@ -271,9 +271,11 @@ def site_jdot_qdot(
         raise _bad_out("site_jdot_qdot", out, (6,)) from None
 
 
-#: The smallest pivot of :math:`J J^\top` (the square of :math:`J`'s smallest singular value)
-#: at which a task Jacobian still counts as regular [m² per rad²]: below it the arm is stretched
-#: out or folded, for :func:`jacobian_solve` and :func:`task_space_inertia` alike.
+#: Where a task Jacobian stops counting as regular [m² per rad²]: below it the arm is stretched
+#: out or folded. :func:`jacobian_solve` compares it with the smallest pivot of the Cholesky
+#: factorisation of :math:`J J^\top`, :func:`task_space_inertia` with the square of :math:`J`'s
+#: smallest singular value :math:`\sigma^2`. No pivot is below :math:`\sigma^2`, so near a
+#: singularity the first refuses a little later than the second.
 SINGULAR_PIVOT = 1e-10
 
 

@@ -2,8 +2,8 @@
 
 MuJoCo reads ``MUJOCO_GL`` once, when it is first imported, so the choice has to be made
 by the first thing a notebook imports: :mod:`labsupport` calls :func:`select_backend` on
-import. The order of preference is EGL (GPU or Mesa's llvmpipe), then OSMesa (software),
-then no rendering at all; simulation works in every case.
+import. The order of preference is EGL (GPU or Mesa's llvmpipe), then GLFW where a display
+is open, then OSMesa (software), then no rendering at all; simulation works in every case.
 """
 
 from __future__ import annotations

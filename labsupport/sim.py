@@ -11,7 +11,9 @@ What the controller sees depends on how the step is taken:
 * by default, the data as the previous ``mj_step`` left it: ``qpos``, ``qvel`` and ``time`` are
   the new state; the derived quantities (``qfrc_bias``, the mass matrix, ``site_xpos``) are
   those of the integrator's last evaluation. With the RK4 integrator that evaluation is RK4's
-  fourth stage, within about 1e-8 of the new state; with Euler it is the start of the step.
+  fourth stage, close to the new state but not at it (the 2R arm swinging at about 2 rad/s:
+  ``site_xpos`` within about 1e-8 m; the 3R arm: within a few micrometres, and ``qfrc_bias``
+  within about 1e-3 N·m); with Euler it is the start of the step.
 * with ``split_step=True``: ``mj_step1`` first, so everything belongs to the current state,
   then the controller, then ``mj_step2`` (Euler and implicit integrators only).
 * with ``lab_timing=True``: as the lab's UR5e loop, no ``mj_forward`` after the reset (the first

@@ -1,6 +1,9 @@
-"""Input checks, written once: every public function of the package validates its arguments
-with these, so a bad argument gets a message that names it, says what was expected and
-what came instead, rather than a traceback from deep inside NumPy or MuJoCo.
+"""Input checks, written once: the package's public functions validate their arguments with
+these, so a bad argument gets a message that names it, says what was expected and what came
+instead, rather than a traceback from deep inside NumPy or MuJoCo. The control laws are the
+exception: their bodies read like their equations, with no checks; run inside
+:func:`labsupport.sim.simulate`, an error of theirs (a shape NumPy cannot broadcast, say) is
+explained there, with the law's name and the time.
 """
 
 from __future__ import annotations
