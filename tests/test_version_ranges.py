@@ -10,8 +10,12 @@ import subprocess
 import sys
 from pathlib import Path
 
-import tomllib
 import yaml
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10: the instructor extra brings tomli
+    import tomli as tomllib
 from test_fresh_venv import COLAB_PYTHON
 
 ROOT = Path(__file__).resolve().parents[1]
