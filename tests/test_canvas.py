@@ -1054,3 +1054,21 @@ def test_each_checks_points_in_the_feedback_add_up_to_the_score(tmp_path, points
             assert round(sum(float(got) for got, _ in shown), 2) == float(score) == float(result.scores[user]), lines
             scored += 1
     assert scored >= 3
+
+
+def test_a_gradebook_given_as_a_folder_is_named_a_folder(tmp_path, capsys):
+    """It said "no gradebook at FOLDER", as if the path were wrong."""
+    with pytest.raises(SystemExit) as stop:
+        canvas.main(
+            [
+                "--spec",
+                str(SPEC),
+                str(FIXTURES / "submissions.zip"),
+                "--gradebook",
+                str(tmp_path),
+                "--out",
+                str(tmp_path / "out"),
+            ]
+        )
+    assert stop.value.code == 2
+    assert f"--gradebook {tmp_path} is a folder: give the CSV file Canvas" in capsys.readouterr().err

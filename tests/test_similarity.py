@@ -576,3 +576,16 @@ def test_last_years_canvas_zip_serves_as_compare_with(tmp_path, capsys):
     assert (tmp_path / "graded" / "similarity.csv").read_text(encoding="utf-8") == (out / "similarity.csv").read_text(
         encoding="utf-8"
     )
+
+
+def test_the_compare_command_refuses_an_out_inside_the_submissions(tmp_path, capsys):
+    """The batch refuses an output folder inside the submissions; compare wrote its report there,
+    and the next batch listed it among what it left aside."""
+    subs = tmp_path / "subs"
+    subs.mkdir()
+    (subs / "copier.ipynb").write_bytes(disguised_copy(SPEC1))
+    with pytest.raises(SystemExit) as stop:
+        compare.main(["--problem", "problem1", str(subs), "--out", str(subs / "reports")])
+    assert stop.value.code == 2
+    assert "is inside the submissions folder" in capsys.readouterr().err
+    assert sorted(p.name for p in subs.iterdir()) == ["copier.ipynb"]

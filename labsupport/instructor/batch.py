@@ -204,6 +204,15 @@ def _grade_row(payload, spec: dict, seed: int, layout, unsafe_root, budget: judg
     return row
 
 
+def check_out_outside(out: Path, submissions: Path) -> None:
+    """``ValueError`` where the output folder ``out`` lies inside the folder of submissions."""
+    if Path(out).resolve().is_relative_to(Path(submissions).resolve()):
+        raise ValueError(
+            f"the output folder {out} is inside the submissions folder {submissions}: the next batch would find the "
+            "reports among the submissions (and a zip of the folder would carry them). Give --out a folder outside it"
+        )
+
+
 def run_batch(
     submissions: Path,
     spec_path: Path,
@@ -239,11 +248,7 @@ def run_batch(
         raise ValueError(f"submissions must be a folder of .ipynb files; {submissions} does not exist")
     if not Path(submissions).is_dir():
         raise ValueError(f"submissions must be a folder of .ipynb files; {submissions} is not a folder")
-    if Path(out).resolve().is_relative_to(Path(submissions).resolve()):
-        raise ValueError(
-            f"the output folder {out} is inside the submissions folder {submissions}: the next batch would find the "
-            "grades among the submissions (and a zip of the folder would carry them). Give --out a folder outside it"
-        )
+    check_out_outside(out, submissions)
     files, aside = list_notebooks(submissions), left_aside(submissions)
     if aside:  # nothing is left aside unsaid
         print("not graded (not .ipynb files): " + clean_text(", ".join(aside)), file=sys.stderr)

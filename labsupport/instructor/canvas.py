@@ -469,6 +469,8 @@ def main(argv=None) -> None:
             "Submissions), not unzipped; files unzipped from it can be zipped again, with their names as they are. "
             "For a folder of notebooks without Canvas's names, run python -m labsupport.instructor.batch"
         )
+    if args.gradebook.is_dir():
+        parser.error(f"--gradebook {args.gradebook} is a folder: give the CSV file Canvas's Grades -> Export gives")
     for path, what in ((args.submissions, "submissions zip"), (args.gradebook, "gradebook")):
         if not Path(path).is_file():
             parser.error(f"no {what} at {path}")

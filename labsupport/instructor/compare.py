@@ -31,6 +31,7 @@ from labsupport.instructor.assign import chosen_spec, load_spec, problem_argumen
 from labsupport.instructor.batch import (
     atomic_write,
     check_compare_with,
+    check_out_outside,
     check_submissions_folder,
     compare_with_argument,
     left_aside,
@@ -149,6 +150,10 @@ def main(argv=None) -> None:
     if is_zip(args.submissions):
         payloads = zip_submissions(parser, args.submissions, spec)
     elif args.submissions.is_dir():
+        try:
+            check_out_outside(args.out, args.submissions)
+        except ValueError as err:
+            parser.error(str(err))
         payloads = folder_submissions(parser, args.submissions)
     else:
         parser.error(
