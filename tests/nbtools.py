@@ -103,7 +103,7 @@ if __name__ == "__main__":
 
 
 #: Where Colab installs labsupport: a law compiled there names this file, not this checkout's.
-COLAB_SITE_PACKAGES = "/usr/local/lib/python3.11/dist-packages"
+COLAB_SITE_PACKAGES = "/usr/local/lib/python3.13/dist-packages"
 
 
 def carried_code(fn, site_packages: str = COLAB_SITE_PACKAGES, filename: str | None = None) -> str:

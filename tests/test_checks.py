@@ -1440,7 +1440,7 @@ def test_a_fingerprint_is_what_the_code_does_not_what_it_is_called():
     ("filename", "module"),
     [
         (
-            "/usr/local/lib/python3.11/dist-packages/labsupport/controllers/joint_space.py",
+            "/usr/local/lib/python3.13/dist-packages/labsupport/controllers/joint_space.py",
             "labsupport.controllers.joint_space",
         ),
         ("C:\\Users\\me\\site-packages\\labsupport\\kinematics\\planar_2r.py", "labsupport.kinematics.planar_2r"),

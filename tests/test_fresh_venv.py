@@ -38,7 +38,7 @@ pytestmark = pytest.mark.fresh_venv
 ROOT = nbtools.ROOT
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
 #: The Python of Colab's runtime.
-COLAB_PYTHON = "3.12"
+COLAB_PYTHON = "3.13"
 #: What Colab already provides and the install cell therefore does not install: a kernel and a
 #: notebook runner. Pinned to the versions of this project's environment (pip's cache has them).
 RUNNER = ["ipykernel", "nbclient", "nbformat"]
