@@ -397,6 +397,18 @@ def test_ik_mistakes_are_named(master1):
     assert float(quoted.group(2)) == pytest.approx(np.arctan2(y, x), abs=2e-3)
 
 
+def test_an_ik_that_returns_none_on_one_branch_scores_the_other(master1):
+    """An IK right elbow-up that returns None elbow-down scored 0, told "not implemented yet":
+    it now keeps the share it solves, and is told where it returned None. An IK that returns
+    None everywhere is still not implemented."""
+    ik = master1["ik_3r"]
+    half = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, True) if elbow_up else None)
+    assert half.score == 0.5 and "not implemented" not in half.message
+    assert "elbow_up=False: ik_3r returned None there, where it returns angles for other calls" in half.message
+    nothing = grade("p1_ik", ik_3r=lambda x, elbow_up=True: None)
+    assert nothing.score == 0 and nothing.status == "not implemented yet"
+
+
 def test_ik_that_accepts_unreachable_targets_is_told(master1):
     def no_check(x, elbow_up=True):
         return master1["ik_3r"](np.asarray(x) * min(1.0, 1.9 / np.linalg.norm(np.asarray(x) - [0, 0, 1])), elbow_up)
