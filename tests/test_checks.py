@@ -409,6 +409,31 @@ def test_an_ik_that_returns_none_on_one_branch_scores_the_other(master1):
     assert nothing.score == 0 and nothing.status == "not implemented yet"
 
 
+def test_an_ik_that_never_returns_is_stopped_in_the_notebook_too(master1, monkeypatch):
+    """In the notebook, a check of an IK that never returns ran for ever (the batch stops each
+    call after CALL_CPU_SECONDS of CPU time): it stops now too, even in a loop that catches every
+    Exception, and scores the calls that returned."""
+    from labsupport.grading import feedback
+
+    monkeypatch.setattr(feedback, "CALL_CPU_SECONDS", 0.3)
+    ik = master1["ik_3r"]
+
+    def stubborn(x, elbow_up=True):
+        while not elbow_up:
+            try:
+                sum(range(1000))
+            except Exception:
+                pass
+        return ik(x, elbow_up)
+
+    t0 = time.monotonic()
+    result = grade("p1_ik", ik_3r=stubborn)
+    assert time.monotonic() - t0 < 30
+    assert result.score == 0.5
+    assert "ik_3r did not return: it used 0.3 s of CPU time, the most one call may use" in result.message
+    assert "The other 23 elbow-down calls were not made (counted wrong)" in result.message
+
+
 def test_ik_that_accepts_unreachable_targets_is_told(master1):
     def no_check(x, elbow_up=True):
         return master1["ik_3r"](np.asarray(x) * min(1.0, 1.9 / np.linalg.norm(np.asarray(x) - [0, 0, 1])), elbow_up)
@@ -2576,7 +2601,7 @@ def test_a_run_that_leaves_its_branch_asks_about_the_ik_only_where_the_ik_left_i
     for answer, words in (
         (down, "does the IK switch to it there?"),
         (common.over_the_top(front), "does the IK switch to it there?"),
-        (front, "the torques let the arm fall off its reference"),
+        (front, "either the law asks its IK for another branch (ik_3r(x, elbow_up=False), say), or its torques"),
     ):
         said = problem2._left_the_branch(model, log, every=1, ik=lambda x, answer=answer: answer)
         assert said.startswith("at t = 0.10 s the elbow was below") and words in said, said
@@ -2605,3 +2630,29 @@ def test_a_mujoco_call_with_wrong_arguments_is_told_the_call_it_takes():
         "C-contiguous float64 NumPy array"
     )
     assert feedback.mujoco_arguments_text("TypeError: f(): incompatible function arguments") is None
+
+
+def test_a_function_whose_cell_has_a_syntax_error_is_told_so_in_the_notebook():
+    """In the notebook, a law whose cell did not compile was reported "not defined: run its cell
+    first", which the student had done; the batch named the syntax error. The notebook's check
+    now reads it from IPython's input history too."""
+    from labsupport.grading import feedback
+
+    broken = "import numpy as np\n\ndef pd_torque(model, data, q_d, Kp, Kd)\n    return Kp * (q_d - data.qpos)\n"
+    probe = feedback.DirectProbe({"In": ["", broken, "check('p1_pd', globals())"]})
+    with pytest.raises(feedback.StudentError) as err:
+        probe.call("pd_torque")
+    assert str(err.value).startswith("pd_torque is not defined: the cell that defines it raised SyntaxError: ")
+    assert "(line 3 of the cell); fix it and run that cell again" in str(err.value)
+    never_run = feedback.DirectProbe({"In": ["", "x = 1"]})
+    with pytest.raises(feedback.StudentError, match="not defined: run its cell \\(above\\) first"):
+        never_run.call("pd_torque")
+
+
+def test_swapped_gains_are_named_in_pd_and_ct(master1):
+    """A law with Kp and Kd exchanged was told only the numbers it got and expected."""
+    pd, ct = master1["pd_torque"], master1["ct_joint_torque"]
+    for name, law in (("p1_pd", pd), ("p1_ct", ct)):
+        swapped = lambda model, data, q_d, Kp, Kd, law=law: law(model, data, q_d, Kd, Kp)  # noqa: E731
+        result = grade(name, **{law.__name__: swapped})
+        assert result.score == 0.5 and "Kp and Kd are swapped" in result.message, result

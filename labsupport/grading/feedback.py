@@ -14,10 +14,13 @@ student's function sees exactly what it would see inside a simulation.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import os
 import re
+import signal
 import sysconfig
+import threading
 import time
 import traceback
 from dataclasses import dataclass, field, replace
@@ -38,6 +41,9 @@ PASS, PARTIAL, FAIL, NOT_IMPLEMENTED = "pass", "partial", "fail", "not implement
 #: CPU time the batch grader gives the student's code over one check [s] (a simulation calls it
 #: at every control step); past it, that check scores zero there.
 CHECK_CPU_SECONDS = 60.0
+#: CPU time one call of a student's function may use [s], in the notebook's checks as in the
+#: batch grader: an IK that never returns is stopped, and the check says so.
+CALL_CPU_SECONDS = 10.0
 
 
 @dataclass(frozen=True)
@@ -89,6 +95,33 @@ class NotImplementedYet(StudentError):
 
 class StudentTimeout(StudentError):
     """The student's code did not answer within the time limit."""
+
+
+class _CallTimedOut(BaseException):
+    """Raised inside the student's code when a call has used up its CPU time: a BaseException,
+    so that an ``except Exception`` in a loop of theirs does not swallow it."""
+
+
+@contextlib.contextmanager
+def cpu_limit(seconds: float):
+    """Stop the block with :class:`_CallTimedOut` once the process has used ``seconds`` of CPU
+    time in it (``ITIMER_PROF``), and every half second after, should the block catch it. Only
+    where signals can be used, the main thread of a POSIX process (a notebook's kernel); no
+    limit elsewhere."""
+    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "setitimer"):
+        yield
+        return
+
+    def expire(signum, frame):
+        raise _CallTimedOut
+
+    previous = signal.signal(signal.SIGPROF, expire)
+    signal.setitimer(signal.ITIMER_PROF, seconds, 0.5)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_PROF, 0)
+        signal.signal(signal.SIGPROF, previous)
 
 
 class ForbiddenCall(StudentError):
@@ -292,8 +325,24 @@ class DirectProbe(Probe):
 
     def _lookup(self, name: str):
         if name not in self.namespace:
-            raise StudentError(f"{name} is not defined: run its cell (above) first, or restore it if it was deleted")
+            raise StudentError(f"{name} is not defined: {self._why_undefined(name)}")
         return self.namespace[name]
+
+    def _why_undefined(self, name: str) -> str:
+        """Why ``name`` is missing, from the notebook's input history (IPython's ``In``): the last
+        cell run that defines it, if its code does not compile, says so; else run its cell."""
+        history = self.namespace.get("In")
+        for source in reversed(history if isinstance(history, list) else []):
+            if isinstance(source, str) and re.search(rf"^\s*def\s+{re.escape(name)}\s*\(", source, re.M):
+                try:
+                    compile(source, "<cell>", "exec")
+                except SyntaxError as err:
+                    return (
+                        f"the cell that defines it raised SyntaxError: {err.msg} (line {err.lineno} of the cell); "
+                        "fix it and run that cell again"
+                    )
+                break
+        return "run its cell (above) first, or restore it if it was deleted"
 
     def call(self, fname: str, *args, **kwargs):
         fn = self._lookup(fname)
@@ -310,7 +359,13 @@ class DirectProbe(Probe):
 
         start = time.process_time()
         try:
-            value, used = call_watched(call_and_read)
+            with cpu_limit(CALL_CPU_SECONDS):
+                value, used = call_watched(call_and_read)
+        except _CallTimedOut:
+            raise StudentTimeout(
+                f"{fname} did not return: it used {CALL_CPU_SECONDS:g} s of CPU time, the most one call may use (a "
+                "loop that never ends, in it or in a function it calls, such as an IK that never converges?)"
+            ) from None
         except ForbiddenUse as err:
             raise ForbiddenCall(forbidden_use_text(err)) from None
         except StudentError:

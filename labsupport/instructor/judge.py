@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from labsupport.grading.feedback import (
+    CALL_CPU_SECONDS,
     CHECK_CPU_SECONDS,
     NOT_IMPLEMENTED,
     PASS,
@@ -84,7 +85,7 @@ class Budget:
 
     cell: float = 30.0
     run: float = 120.0
-    call: float = 10.0
+    call: float = CALL_CPU_SECONDS
     check: float = CHECK_CPU_SECONDS
     idle: float = 20.0
     run_idle: float = 60.0
