@@ -339,6 +339,17 @@ def own_gains_mistake(value: np.ndarray, Kp: float, Kd: float) -> Mistake:
     )
 
 
+def swapped_gains_mistake(value: np.ndarray) -> Mistake:
+    """The torque of the right law with ``Kp`` and ``Kd`` exchanged (parameters taken in the other
+    order, say)."""
+    return Mistake(
+        value,
+        "the formula is right, but Kp and Kd are swapped: Kp multiplies the position error q_d − q, Kd the "
+        "velocity q̇ (check the order of the parameters in the def line, and of the arguments in the call)",
+        0.5,
+    )
+
+
 def degrees_mistake(value_in_radians: np.ndarray, text: str = "", score: float = 0.25) -> Mistake:
     """The torque of a law computed with angles in degrees (180/π times the angle terms)."""
     return Mistake(

@@ -37,6 +37,7 @@ from labsupport.grading.common import (
     pan_turned_round,
     rng_for,
     run_student,
+    swapped_gains_mistake,
     terms,
     tip,
 )
@@ -285,6 +286,7 @@ def _pd_mistakes(T, state, q_d, Kp, Kd):
         ),
         "degrees": degrees_mistake(np.degrees(Kp * e - Kd * qdot)),
         "own_gains": own_gains_mistake(KP_PD * e - KD_PD * qdot, KP_PD, KD_PD),
+        "swapped_gains": swapped_gains_mistake(Kd * e - Kp * qdot),
     }
 
 
@@ -333,6 +335,7 @@ def _ct_mistakes(T, state, q_d, Kp, Kd):
         ),
         "degrees": degrees_mistake(M @ np.degrees(v) + h),
         "own_gains": own_gains_mistake(M @ (KP_CT * e - KD_CT * qdot) + h, KP_CT, KD_CT),
+        "swapped_gains": swapped_gains_mistake(M @ (Kd * e - Kp * qdot) + h),
     }
 
 
