@@ -583,8 +583,8 @@ def _left_the_branch(model, log, every: int = 10, ik=None) -> str | None:
         if q_ik is not None and elbow_height(model, q_ik) > 0 and not pan_turned_round(q_ik, log.ref[k]):
             return (
                 f"at t = {t:.2f} s {where}, while your ik_3r gives the elbow-up solution facing the target "
-                "there: the torques let the arm fall off its reference (the IK+JS-CT check says which "
-                "term is off)"
+                "there: either the law asks its IK for another branch (ik_3r(x, elbow_up=False), say), or its "
+                "torques let the arm fall off its reference (the IK+JS-CT check says which)"
             )
         return f"at t = {t:.2f} s {where}: does the IK switch to it there?{BRANCH_ADVICE}"
     return None
@@ -729,7 +729,8 @@ SCORING = {
     f"{2 * IK_APPROX * 1e6:g} µm of the target explains (a numerical IK's) counts as exact too.",
     "p2_track": (
         f"Each of the two controllers runs one {TRACK_DURATION:g} s turn of a drawn circle from a start on it: half "
-        f"the credit for each whose RMS position error stays below {RMS_TOL * 1e3:g} mm. A controller that "
-        "returns the other law's torque (one law handed in twice) is not run and earns nothing here."
+        f"the credit for each whose RMS position error stays below {RMS_TOL * 1e3:g} mm and whose own formula "
+        "check (p2_osct, p2_ikct) scores above zero. A controller that returns the other law's torque (one law "
+        "handed in twice) is not run and earns nothing here."
     ),
 }
