@@ -121,8 +121,13 @@ class Watch:
 
 
 def _error_text(err: BaseException, limit: int = 300) -> str:
-    """An error as the sandbox reports it: its type's name, then its message cut to ``limit``."""
-    return f"{type(err).__name__}: {str(err).rstrip()[:limit]}"
+    """An error as the sandbox reports it: its type's name, then its message cut to ``limit``. A
+    syntax error of a private kind is named SyntaxError (Python 3.13 raises its subclass
+    ``_IncompleteInputError`` for a cell that ends mid-statement)."""
+    name = type(err).__name__
+    if isinstance(err, SyntaxError) and name.startswith("_"):
+        name = "SyntaxError"
+    return f"{name}: {str(err).rstrip()[:limit]}"
 
 
 class ThreadErrors:
