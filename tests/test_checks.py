@@ -2656,3 +2656,13 @@ def test_swapped_gains_are_named_in_pd_and_ct(master1):
         swapped = lambda model, data, q_d, Kp, Kd, law=law: law(model, data, q_d, Kd, Kp)  # noqa: E731
         result = grade(name, **{law.__name__: swapped})
         assert result.score == 0.5 and "Kp and Kd are swapped" in result.message, result
+
+
+def test_an_ik_ct_whose_ik_is_not_filled_in_is_told_to_do_todo_1():
+    """With ik_3r still the TODO (it returns None), the IK + joint CT raised a TypeError about
+    NoneType, and the check said only that; it now says that ik_3r returned None, and why."""
+    notebook = namespace_of(ROOT / "notebooks" / "masters" / "problem2_tracking.ipynb")
+    notebook["ik_3r"] = lambda x, elbow_up=True: None  # the law calls the notebook's ik_3r
+    result = grade("p2_ikct", **notebook)
+    assert result.score == 0 and "NoneType" in result.message
+    assert "ik_3r returned None there: check TODO 1 first" in result.message, result
