@@ -2666,3 +2666,28 @@ def test_an_ik_ct_whose_ik_is_not_filled_in_is_told_to_do_todo_1():
     result = grade("p2_ikct", **notebook)
     assert result.score == 0 and "NoneType" in result.message
     assert "ik_3r returned None there: check TODO 1 first" in result.message, result
+
+
+def test_a_law_that_returns_none_at_some_states_is_told_it_has_a_path_without_a_return(master1):
+    """A law that returns None at rest and a torque elsewhere was told "not implemented yet"; it
+    is now told that a path through it returns nothing. One that returns None everywhere is still
+    not implemented."""
+    pd = master1["pd_torque"]
+
+    def pd_none_at_first(model, data, q_d, Kp, Kd):
+        if data.time == 0:  # the first test state, as a run's start
+            return None
+        return pd(model, data, q_d, Kp, Kd)
+
+    result = grade("p1_pd", pd_torque=pd_none_at_first)
+    assert result.score == 0 and result.status != "not implemented yet"
+    assert "pd_torque returned None at one test state and a value at another" in result.message
+    notebook = namespace_of(ROOT / "notebooks" / "masters" / "problem2_tracking.ipynb")
+    os_ct = notebook["ct_op_torque"]
+
+    def none_at_rest(model, data, *args):
+        return None if not data.qvel.any() else os_ct(model, data, *args)
+
+    result = grade("p2_osct", ct_op_torque=none_at_rest)
+    assert result.score == 0 and "ct_op_torque returned None at one test state and a value at another" in result.message
+    assert grade("p2_osct", ct_op_torque=lambda *args: None).status == "not implemented yet"

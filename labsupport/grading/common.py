@@ -26,7 +26,7 @@ import mujoco
 import numpy as np
 
 from labsupport.dynamics import bias_forces, mass_matrix, site_jacobian, site_jdot_qdot
-from labsupport.grading.feedback import Probe, State, StudentError, as_vector, show_pair
+from labsupport.grading.feedback import NotImplementedYet, Probe, State, StudentError, as_vector, show_pair
 from labsupport.grading.stability import Trace, explain_divergence
 from labsupport.plants import load_model
 from labsupport.sim import Log, SimulationDiverged, simulate
@@ -445,6 +445,24 @@ def _tracking_case(model: mujoco.MjModel, rng: np.random.Generator, gains, still
         states = tuple(State(q_d[k] + dq + s[k] * dv, qd_d[k] + dv, t_star + float(s[k])) for k in range(len(s)))
     Kp, Kd = float(rng.uniform(*gains[0])), float(rng.uniform(*gains[1]))
     return Case(states, q_d, qd_d, qdd_d, refs[:, :3], refs[:, 3:6], refs[:, 6:], Kp, Kd, still is not None)
+
+
+def none_here_only(probe: Probe, fname: str, err: StudentError, elsewhere: tuple) -> StudentError:
+    """``err`` as a formula check reports it. A None (:class:`NotImplementedYet`) is "not
+    implemented yet" only where ``fname`` returns None for ``elsewhere`` too (another test
+    state's arguments, the state first); where it returns a value there, the function has a path
+    that returns nothing, and is told so."""
+    if not isinstance(err, NotImplementedYet):
+        return err
+    try:
+        if probe.call(fname, *elsewhere) is None:
+            return err
+    except StudentError:
+        return err
+    return StudentError(
+        f"{fname} returned None at one test state and a value at another: a path through the function that "
+        "ends without a return statement (an if without an else, say) returns None"
+    )
 
 
 def call_along(probe: Probe, fname: str, case: Case, args_at: Callable[[int], tuple]) -> np.ndarray:

@@ -32,6 +32,7 @@ from labsupport.grading.common import (
     formula_scoring,
     gravity,
     judge_torque,
+    none_here_only,
     own_gains_mistake,
     pan_error,
     pan_turned_round,
@@ -235,12 +236,13 @@ def _check_joint_law(
     (``T``: MuJoCo's :class:`~labsupport.grading.common.Terms` at the state) at seeded states; on a
     mismatch, name the mistake ``mistakes(T, state, q_d, Kp, Kd)`` explains."""
     model = arm_model()
-    for state, q_d, Kp, Kd in _joint_law_cases(seed, name, gains):
+    cases = _joint_law_cases(seed, name, gains)
+    for k, (state, q_d, Kp, Kd) in enumerate(cases):
         T = terms(model, state.q, state.qdot)
         try:
             tau = as_vector(function, probe.call(function, state, q_d, Kp, Kd), 3, "torque")
         except StudentError as err:
-            return refused(name, label, err)
+            return refused(name, label, none_here_only(probe, function, err, cases[(k + 1) % len(cases)]))
         verdict = judge_torque(tau, law(T, state, q_d, Kp, Kd), mistakes(T, state, q_d, Kp, Kd))
         if verdict.score < 1:
             return failed(name, f"{label}: {verdict.text}", verdict.score)

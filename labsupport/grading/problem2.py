@@ -41,6 +41,7 @@ from labsupport.grading.common import (
     gravity,
     judge_torque,
     mirror_elbow,
+    none_here_only,
     over_the_top,
     own_gains_mistake,
     pan_turned_round,
@@ -291,11 +292,12 @@ def check_os_ct(probe: Probe, seed: int) -> Result:
     name, label, fname = "p2_osct", "OS-CT", "ct_op_torque"
     model = arm_model()
     worst = 0.0
-    for case in tracking_cases(seed, name, still="arm"):
+    cases = tracking_cases(seed, name, still="arm")
+    for case in cases:
         try:
             tau = call_along(probe, fname, case, lambda k, c=case: (c.x_d[k], c.xd_d[k], c.xdd_d[k], c.Kp, c.Kd))
         except StudentError as err:
-            return refused(name, label, err)
+            return refused(name, label, none_here_only(probe, fname, err, _elsewhere(cases, case)))
         expected, implied, jdq, mistakes = _os_case(model, case)
         if case.still:
             verdict = judge_torque(tau, expected, mistakes, rtol=STILL_RTOL)
@@ -488,15 +490,23 @@ def _ik_case(model, case: Case):
     return expected, implied_jdq, Td.jdq, implied_ik_offset, mistakes
 
 
+def _elsewhere(cases: list[Case], case: Case) -> tuple:
+    """The arguments (state first) of a tracking law's first call in a case other than ``case``."""
+    other = cases[-1] if case is not cases[-1] else cases[0]
+    return (other.states[0], other.x_d[0], other.xd_d[0], other.xdd_d[0], other.Kp, other.Kd)
+
+
 def check_ik_ct(probe: Probe, seed: int) -> Result:
     """``ct_ik_joint_torque`` against IK + joint-space computed torque at seeded states."""
     name, label, fname = "p2_ikct", "IK+JS-CT", "ct_ik_joint_torque"
     model = arm_model()
     worst = 0.0
-    for case in tracking_cases(seed, name, still="reference"):
+    cases = tracking_cases(seed, name, still="reference")
+    for case in cases:
         try:
             tau = call_along(probe, fname, case, lambda k, c=case: (c.x_d[k], c.xd_d[k], c.xdd_d[k], c.Kp, c.Kd))
         except StudentError as err:
+            err = none_here_only(probe, fname, err, _elsewhere(cases, case))
             if "NoneType" in str(err) and isinstance(_own_ik_answer(probe, case.x_d[0]), NotImplementedYet):
                 err = StudentError(f"{err}; ik_3r returned None there: {IK_NOT_PASTED}")  # the law's IK
             return refused(name, label, err)
