@@ -1058,17 +1058,8 @@ def test_each_checks_points_in_the_feedback_add_up_to_the_score(tmp_path, points
 
 def test_a_gradebook_given_as_a_folder_is_named_a_folder(tmp_path, capsys):
     """It said "no gradebook at FOLDER", as if the path were wrong."""
+    argv = [str(tmp_path) if arg == str(EXPORT) else arg for arg in _cli_argv(tmp_path / "out")]
     with pytest.raises(SystemExit) as stop:
-        canvas.main(
-            [
-                "--spec",
-                str(SPEC),
-                str(FIXTURES / "submissions.zip"),
-                "--gradebook",
-                str(tmp_path),
-                "--out",
-                str(tmp_path / "out"),
-            ]
-        )
+        canvas.main(argv)
     assert stop.value.code == 2
     assert f"--gradebook {tmp_path} is a folder: give the CSV file Canvas" in capsys.readouterr().err
