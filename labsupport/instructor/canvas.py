@@ -76,7 +76,7 @@ from labsupport.instructor.outputs import (
     keep_previous,
     keep_private,
 )
-from labsupport.instructor.rubric import canvas_rubric_csv
+from labsupport.instructor.rubric import canvas_rubric_csv, full_marks
 from labsupport.instructor.submissions import (
     SubmissionFile,
     choose_notebook,
@@ -386,11 +386,10 @@ def feedback_text(
         lines.append(f"Not scored: {row.get('status')}; your instructor will grade it again.")
     lines.append("")
     scale = rubric_scale(result)
-    full = apportion([float(c["points"]) * scale for c in spec["checks"]])  # as rubric_canvas.csv's
     got = [row["scores"].get(c["name"]) for c in spec["checks"]]
     if None not in got and row.get("status") in SCORED_STATUSES:  # adding up to the score above
         got = apportion([float(g) * scale for g in got], float(score))
-    for c, earned, most in zip(spec["checks"], got, full, strict=True):
+    for c, earned, most in zip(spec["checks"], got, full_marks(spec, scale), strict=True):  # rubric's full marks
         shown = "-" if earned is None else format_score(float(earned))
         message = clean_text(row.get("messages", {}).get(c["name"], "not graded"))
         lines.append(f"- {c['name']} ({shown} / {format_score(most)}): {message}")

@@ -140,16 +140,21 @@ def canvas_ratings(check: str, points: float) -> list[tuple[str, str, float]]:
     return ratings
 
 
+def full_marks(spec: dict, scale: float = 1.0) -> list[float]:
+    """Each check's points times ``scale``, rounded to hundredths so that they add up to the
+    total (:func:`labsupport.instructor.gradebook.apportion`): the rubric's and the Canvas
+    feedback's full marks, one list for both."""
+    return apportion([float(c["points"]) * scale for c in spec["checks"]])
+
+
 def canvas_rubric_csv(spec: dict, scale: float = 1.0) -> str:
     """The rubric of the Problem an autograder spec describes, as a CSV for Canvas's *Import
     Rubric*: one criterion per check, named ``<check>: <title>``, described by how it scores,
     with the ratings of :func:`canvas_ratings`; every point times ``scale`` (the Canvas column's
     points possible over the checks' total, so the rubric adds up to the column's grade), each
-    criterion's points rounded to hundredths so that they add up to it
-    (:func:`labsupport.instructor.gradebook.apportion`)."""
+    criterion's points rounded to hundredths so that they add up to it (:func:`full_marks`)."""
     rows = []
-    full = apportion([float(c["points"]) * scale for c in spec["checks"]])  # adding up to the column's
-    for c, most in zip(spec["checks"], full, strict=True):
+    for c, most in zip(spec["checks"], full_marks(spec, scale), strict=True):
         module = _module_of(c["name"])
         ranged = "true" if c["name"] in module.PROPORTIONAL else "false"  # any share of the points
         row = [f"{spec['problem']}: grading rubric", f"{c['name']}: {c['title']}", module.SCORING[c["name"]], ranged]
