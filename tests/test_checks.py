@@ -2691,3 +2691,20 @@ def test_a_law_that_returns_none_at_some_states_is_told_it_has_a_path_without_a_
     result = grade("p2_osct", ct_op_torque=none_at_rest)
     assert result.score == 0 and "ct_op_torque returned None at one test state and a value at another" in result.message
     assert grade("p2_osct", ct_op_torque=lambda *args: None).status == "not implemented yet"
+
+
+@pytest.mark.parametrize("check, name", [("p1_pd", "pd_torque"), ("p1_ct", "ct_joint_torque")])
+def test_a_joint_law_with_a_path_only_rest_takes_is_caught_by_its_formula_check(master1, check, name):
+    """Problem 1's formula checks drew every state with a velocity, so a law that returns nothing
+    while q̇ = 0 passed them, and its run, which starts at rest, was then told "not implemented
+    yet". A last test state at rest catches it in the formula check; a law that is only wrong
+    where the arm moves is still caught where it moves."""
+    law = master1[name]
+
+    def none_at_rest(model, data, q_d, Kp, Kd):
+        if data.qvel.any():
+            return law(model, data, q_d, Kp, Kd)
+
+    result = grade(check, **{name: none_at_rest})
+    assert result.score == 0 and f"{name} returned None at one test state and a value at another" in result.message
+    assert grade(check, **{name: law}).score == 1

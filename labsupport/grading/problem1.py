@@ -217,7 +217,10 @@ def _unreachable_note(probe: Probe) -> str:
 def _joint_law_cases(seed: int, check: str, gains, n: int = 4):
     """Seeded states (either elbow branch, random velocities), set points and gains. The first
     state is at t = 0, as a run starts; the others at drawn times within the run, so that a law
-    that does something else after the start (replays its first torque, say) is seen to."""
+    that does something else after the start (replays its first torque, say) is seen to. One
+    more case comes last, drawn from a stream of its own (the first ``n`` stay as they are): the
+    arm at rest at t = 0, where every run starts, so that a law with a path that only rest takes
+    (one that returns nothing while q̇ = 0, say) is seen to here, and not first in its run."""
     rng, clock = rng_for(seed, check), rng_for(seed, check + " time")
     cases = []
     for k in range(n):
@@ -226,6 +229,16 @@ def _joint_law_cases(seed: int, check: str, gains, n: int = 4):
         cases.append(
             (state, q + rng.uniform(-0.5, 0.5, 3), float(rng.uniform(*gains[0])), float(rng.uniform(*gains[1])))
         )
+    rest = rng_for(seed, check + " rest")
+    q = draw_configuration(rest, elbow_up=True)
+    cases.append(
+        (
+            State(q, np.zeros(3), 0.0),
+            q + rest.uniform(-0.5, 0.5, 3),
+            float(rest.uniform(*gains[0])),
+            float(rest.uniform(*gains[1])),
+        )
+    )
     return cases
 
 
