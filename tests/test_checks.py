@@ -27,7 +27,7 @@ from nbtools import carried_code
 import labsupport
 import labsupport.controllers.joint_space as joint_space_alias
 from labsupport.dynamics import bias_forces, mass_matrix, site_jacobian, site_jdot_qdot
-from labsupport.grading import PUBLIC_SEED, check, common, feedback, problem1, problem2, registry, rules
+from labsupport.grading import PUBLIC_SEED, check, common, feedback, problem1, problem2, registry, rules, stability
 from labsupport.grading.feedback import (
     FAIL,
     NOT_IMPLEMENTED,
@@ -2708,3 +2708,24 @@ def test_a_joint_law_with_a_path_only_rest_takes_is_caught_by_its_formula_check(
     result = grade(check, **{name: none_at_rest})
     assert result.score == 0 and f"{name} returned None at one test state and a value at another" in result.message
     assert grade(check, **{name: law}).score == 1
+
+
+def test_a_run_toward_a_target_in_degrees_is_told_the_degrees_not_the_gains(master1, capsys, tmp_path, monkeypatch):
+    """Problem 1's right laws, handed the lab's target in degrees, run away within a few steps;
+    the notebook's run was told to lower the gains or check the signs of the law. It now names
+    the angles beyond 2π and radians. The same laws toward the target in radians are not told so."""
+    from labsupport.grading import as_controller, attempt
+    from labsupport.plants import load_model
+    from labsupport.sim import simulate
+
+    monkeypatch.chdir(tmp_path)
+    model, data = load_model("spatial_3r")
+    for name, gains in (("pd_torque", (400.0, 50.0)), ("ct_joint_torque", (100.0, 18.0))):
+        ctrl = as_controller(master1[name], np.degrees(master1["q_des"]), *gains)
+        assert attempt("run", lambda ctrl=ctrl: simulate(model, data, ctrl, 1.0, q0=problem1.Q0), ctrl, model) is None
+        said = capsys.readouterr().out
+        assert "diverged" in said and "has angles beyond 2π: are they in degrees?" in said and "np.radians" in said
+        assert "Lower the gains" not in said
+    assert stability.target_in_degrees(master1["pd_torque"], (master1["q_des"], 400.0, 50.0)) is None
+    x_far = np.array([10.0, 0.0, 0.0])  # a Cartesian target is not angles, however far
+    assert stability.target_in_degrees(lambda model, data, x_d, Kp, Kd: None, (x_far, 1.0, 1.0)) is None

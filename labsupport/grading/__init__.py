@@ -39,7 +39,7 @@ from labsupport.grading.feedback import (
     noting_state_write,
     where_raised,
 )
-from labsupport.grading.stability import Trace, explain_divergence
+from labsupport.grading.stability import Trace, explain_divergence, target_in_degrees
 from labsupport.sim import CONTROLLER_RAISED, SimulationDiverged, controller_name, state_written
 from labsupport.validate import short
 
@@ -168,7 +168,11 @@ def attempt(label: str, run: Callable, controller: StudentController | None = No
         print(f"{label}: skipped, {err}.")
     except SimulationDiverged as err:
         reason = None
-        if controller is not None and model is not None:
+        if controller is not None and not controller.moving:
+            reason = target_in_degrees(controller.fn, controller.args)
+        if reason is not None:
+            reason += f" ({err.reason})."
+        elif controller is not None and model is not None:
             reason = explain_divergence(model, controller.torque, controller.trace, err.t, law=controller.name)
         print(
             f"{label}: the simulation diverged at t = {err.t:.3f} s: "

@@ -22,6 +22,7 @@ multiply by it, which no time step cures.
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable
 
 import mujoco
@@ -213,3 +214,28 @@ def explain_divergence(
         if reason is not None:
             return reason
     return None
+
+
+def target_in_degrees(law: Callable, args: tuple) -> str | None:
+    r"""Why a run away may have started before the law did anything wrong: the joint target it
+    was handed looks like degrees. That is the law's first argument after ``data``, when its
+    name says it holds joint angles (``q_d``, ``q_target``: it begins with ``q``), and one of
+    its angles lies beyond :math:`2\pi`. ``None`` otherwise (a Cartesian target, a target
+    that is a function of time, or angles that fit radians)."""
+    try:
+        names = list(inspect.signature(law).parameters)
+    except (TypeError, ValueError):  # a builtin, say: no names to read
+        return None
+    if len(names) < 3 or not names[2].lower().startswith("q") or not args:
+        return None
+    try:
+        target = np.asarray(args[0], dtype=float)
+    except (TypeError, ValueError):
+        return None
+    if target.ndim != 1 or not np.isfinite(target).all() or np.abs(target).max() <= 2 * np.pi:
+        return None
+    return (
+        f"the target it was handed, {names[2]} = [{', '.join(f'{v:.1f}' for v in target)}], has angles beyond "
+        "2π: are they in degrees? MuJoCo's angles are in radians: convert them with np.radians, or, if ik_3r "
+        "returned them, make it return radians (TODO 1)"
+    )
