@@ -1030,6 +1030,29 @@ def test_a_regrade_that_cannot_grade_still_says_where_the_earlier_run_went(tmp_p
     assert (out / "previous" / "gradebook_import.csv").is_file()
 
 
+def test_a_regrade_stopped_by_ctrl_c_says_where_the_earlier_run_went(tmp_path, capsys, monkeypatch):
+    """Stopped mid-grading (Ctrl-C), a regrade printed only Python's traceback, although it had
+    already moved the earlier import into previous/: it now says where, before the traceback."""
+    out = tmp_path / "out"
+    monkeypatch.setattr(
+        canvas, "run_batch", lambda folder, spec_path, out, **options: fake_grade([])(folder, spec_path, out)
+    )
+    canvas.main(_cli_argv(out))
+    capsys.readouterr()
+
+    def run_batch(folder, spec_path, out, **options):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(canvas, "run_batch", run_batch)
+    with pytest.raises(KeyboardInterrupt):
+        canvas.main(_cli_argv(out))
+    assert capsys.readouterr().err == (
+        "stopped; the earlier run's gradebook_import.csv, report.txt, feedback_upload.zip, rubric_canvas.csv, "
+        f"feedback/ (6 files) are now in {out / 'previous'}\n"
+    )
+    assert (out / "previous" / "gradebook_import.csv").is_file()
+
+
 @pytest.mark.parametrize("points_possible", ["6.66", "13.33", "7.77", "9.99", "6.67"])
 def test_each_checks_points_in_the_feedback_add_up_to_the_score(tmp_path, points_possible):
     """Each check's points, scaled to the column and rounded to hundredths one by one, could add

@@ -37,6 +37,7 @@ from __future__ import annotations
 import argparse
 import re
 import shutil
+import sys
 import tempfile
 import unicodedata
 import zipfile
@@ -181,6 +182,10 @@ def grade_canvas(
         if not result.moved:
             raise
         raise type(err)(f"{err}\n({result.moved})") from err
+    except BaseException:  # Ctrl-C, say: its traceback follows, after where the earlier run went
+        if result.moved:
+            print(f"stopped; {result.moved}", file=sys.stderr)
+        raise
     _record_scores(gradebook, col, spec, chosen, rows, out, result)
     (out / "gradebook_import.csv").write_bytes(fill_column(gradebook, col, result.scores).encode("utf-8"))
     _write_feedback_zip(out, result)
