@@ -21,7 +21,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from labsupport import validate
-from labsupport.sim import RUNAWAY_SPEED, Log, SimulationDiverged
+from labsupport.sim import RUNAWAY_SPEED, Log, SimulationDiverged, runaway_reason
 
 #: The lab's (textbook) parameters.
 LAB_M, LAB_m, LAB_r, LAB_b = 0.5, 1.0, 0.1, 0.1
@@ -117,7 +117,9 @@ class SingleJoint:
 
         Raises:
             labsupport.sim.SimulationDiverged: the joint turns faster than
-                :data:`labsupport.sim.RUNAWAY_SPEED` (a sign error, gains far too high).
+                :data:`labsupport.sim.RUNAWAY_SPEED` (a sign error, or gains so high that even a
+                stable response moves this fast: RK45 follows the closed loop closely, so no
+                numerical instability trips it).
             RuntimeError: RK45 needed more than :data:`MAX_EVALUATIONS` steps' worth of
                 evaluations: the closed loop is too stiff for it.
 
@@ -190,9 +192,7 @@ class SingleJoint:
             raise ValueError(str(err)) from None
         if sol.status == 1:  # stopped by the runaway event
             (t_bad,), (x_bad,) = sol.t_events[0], sol.y_events[0]
-            reason = f"the joint reached {RUNAWAY_SPEED:g} rad/s: the run is running away"
-            advice = "Lower the gains, clip the torque, or check the law for a sign error."
-            raise SimulationDiverged(float(t_bad), x_bad[:1], x_bad[1:], reason, advice)
+            raise SimulationDiverged(float(t_bad), x_bad[:1], x_bad[1:], runaway_reason(RUNAWAY_SPEED))
         if not sol.success:
             raise RuntimeError(f"the integration stopped early: {sol.message}")
         tau = np.array([[checked_torque(t, x)] for t, x in zip(sol.t, sol.y.T, strict=True)]).reshape(-1, 1)

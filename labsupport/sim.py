@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 import sys
 import threading
 import warnings
@@ -88,15 +89,24 @@ _WARNING_MEANING = {
 class SimulationDiverged(RuntimeError):
     """The simulation blew up; ``t``, ``qpos`` and ``qvel`` hold where and how."""
 
-    #: What to do about a run that ran away: the advice unless a more specific one is given.
+    #: What to do about a run that ran away: the advice unless a more specific one is given. The
+    #: speed bound does not tell an unstable loop from a stable one so stiff that it moves this fast,
+    #: so the advice names both.
     RUNAWAY_ADVICE = (
-        "Lower the gains, clip the torque, or check the controller for a sign error; with a Cartesian "
-        "target, check that it is within the arm's reach (near the edge of the workspace J is nearly "
-        "singular and J⁻¹ huge)."
+        "Either the closed loop is unstable (check the law for a sign error, and that its angles are in "
+        "radians, not degrees), or it is so stiff that even a stable response moves this fast (gains far "
+        "beyond the arm's scale): lower the gains, or clip the torque."
+    )
+    #: Added for an arm of more than one joint, whose target may be Cartesian.
+    CARTESIAN_ADVICE = (
+        " With a Cartesian target, check that it is within the arm's reach (near the edge of the "
+        "workspace J is nearly singular and J⁻¹ huge)."
     )
 
-    def __init__(self, t: float, qpos: np.ndarray, qvel: np.ndarray, reason: str, advice: str = RUNAWAY_ADVICE):
+    def __init__(self, t: float, qpos: np.ndarray, qvel: np.ndarray, reason: str, advice: str | None = None):
         self.t, self.qpos, self.qvel, self.reason = t, np.array(qpos), np.array(qvel), reason
+        if advice is None:
+            advice = self.RUNAWAY_ADVICE + (self.CARTESIAN_ADVICE if self.qvel.size > 1 else "")
         with np.printoptions(precision=4, suppress=True):
             super().__init__(
                 f"simulation diverged at t = {t:.4f} s ({reason}); q = {self.qpos}, qdot = {self.qvel}. {advice}"
@@ -631,7 +641,7 @@ def _raise_warning(k, state, q, qdot, start, tau, warn, log_after_step, said, ac
         )
     if said:
         reason += f" (MuJoCo: {said[-1].split('. ')[0]})"
-    advice = SimulationDiverged.RUNAWAY_ADVICE
+    advice = None  # the runaway's
     if warn[_W_CTRL] and not np.isfinite(tau).all() and np.isfinite(qk).all() and np.isfinite(qdk).all():
         advice = _NOT_A_NUMBER_ADVICE
     raise SimulationDiverged(float(tk), qk, qdk, reason, advice)
@@ -706,13 +716,18 @@ def _check_runaway(t, q, qdot):
         bad = ~finite | (np.abs(qdot) > RUNAWAY_SPEED).any(axis=1)
     if bad.any():
         k = int(np.argmax(bad))
-        reason = (
-            "non-finite state"
-            if not finite[k]
-            else f"a joint turns at {np.abs(qdot[k]).max():.4g} rad/s, beyond {RUNAWAY_SPEED:g} rad/s: the run is "
-            "running away"
-        )
+        reason = "non-finite state" if not finite[k] else runaway_reason(np.abs(qdot[k]).max())
         raise SimulationDiverged(float(t[k]), q[k], qdot[k], reason)
+
+
+def runaway_reason(speed: float) -> str:
+    """Why a run stopped at :data:`RUNAWAY_SPEED`, in words that do not claim the loop is
+    unstable: a stable but very stiff one reaches the bound too. The speed is rounded up, so that
+    it never reads as the bound itself."""
+    return (
+        f"a joint turns at {math.ceil(10 * speed) / 10:g} rad/s, past {RUNAWAY_SPEED:g} rad/s (about "
+        f"{RUNAWAY_SPEED * 30 / math.pi:.0f} rpm), the speed at which a run stops as running away"
+    )
 
 
 def _check_reference(reference, span: tuple[float, float], site_dims: int) -> None:

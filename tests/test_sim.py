@@ -121,7 +121,10 @@ def test_a_runaway_joint_speed_stops_the_run_where_it_crosses_the_bound(arm):
     cut just before it is untouched."""
     model, data = arm
     push = constant([4.0, 0.0])
-    with pytest.raises(sim.SimulationDiverged, match=r"rad/s, beyond 100 rad/s: the run is running away") as err:
+    with pytest.raises(
+        sim.SimulationDiverged,
+        match=r"rad/s, past 100 rad/s \(about 955 rpm\), the speed at which a run stops as running away",
+    ) as err:
         sim.simulate(model, data, push, 30.0, q0=[0.0, 0.0])
     exc = err.value
     assert np.abs(exc.qvel).max() > sim.RUNAWAY_SPEED

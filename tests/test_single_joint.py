@@ -608,3 +608,17 @@ def test_cumulative_effort_integrates_the_squared_torque():
     two = np.c_[np.full_like(t, 3.0), np.full_like(t, -4.0)]
     np.testing.assert_allclose(metrics.cumulative_effort(t, two), 25.0 * t, rtol=1e-12)
     np.testing.assert_allclose(metrics.cumulative_effort(t, t), t**3 / 3, atol=1e-4)
+
+
+def test_a_stable_but_very_stiff_design_is_not_called_a_runaway_sign_error():
+    """Method 2 asked for a 0.05 s settling time gives a stable loop whose step peaks near 107 rad/s
+    (RK45 follows it closely, so nothing numerical is unstable); the run stops at the speed bound,
+    but its message no longer says the run is running away or blames a sign error alone: it names
+    both causes, and leaves out the Cartesian advice, which a single joint has no use for."""
+    g, _ = gains.spec_gains(HORIZONTAL.M, HORIZONTAL.b, 10.0, 0.05)
+    with pytest.raises(SimulationDiverged) as caught:
+        HORIZONTAL.simulate(pd_to(np.pi / 2, g.Kp, g.Kd), 2.0)
+    said = str(caught.value)
+    assert "past 100 rad/s" in said and "the speed at which a run stops as running away" in said
+    assert "or it is so stiff that even a stable response moves this fast" in said and "radians" in said
+    assert "Cartesian" not in said
