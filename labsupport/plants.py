@@ -21,7 +21,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from labsupport import validate
-from labsupport.sim import RUNAWAY_SPEED, Log, SimulationDiverged, runaway_reason
+from labsupport.sim import RUNAWAY_SPEED, Log, SimulationDiverged, fewer_arguments_hint, runaway_reason
 
 #: The lab's (textbook) parameters.
 LAB_M, LAB_m, LAB_r, LAB_b = 0.5, 1.0, 0.1, 0.1
@@ -46,12 +46,7 @@ def _torque_error_hint(err: Exception) -> str:
     called = err.__traceback__ is None or err.__traceback__.tb_next is None  # the call of torque itself
     if called or isinstance(err, AttributeError):
         return "; it is called as torque(t, state) with state = (theta, theta_dot), an array"
-    if isinstance(err, TypeError) and "missing" in str(err) and "argument" in str(err):
-        return (
-            "; a law inside it was called with fewer arguments than it takes: a Reference or Gains "
-            "passed whole counts as one argument, so unpack it with *, as in *reference(t)"
-        )
-    return ""
+    return fewer_arguments_hint(err)
 
 
 @dataclass(frozen=True)

@@ -438,6 +438,26 @@ def _other_shape_hint(err: Exception) -> str:
             ". simulate calls controller(model, data); a function torque(t, state) is the form "
             "SingleJoint.simulate calls: here read the state from data.qpos and data.qvel"
         )
+    if err.__traceback__ is not None and err.__traceback__.tb_next is None:  # the call controller(model, data)
+        if isinstance(err, TypeError):
+            return (
+                ". simulate calls controller(model, data), with these two arguments only: a law that takes "
+                "more goes inside such a function (def controller(model, data): return law(model, data, ...)); "
+                "a function that makes a controller is called first, and what it returns is passed"
+            )
+        return ""
+    return fewer_arguments_hint(err)
+
+
+def fewer_arguments_hint(err: Exception) -> str:
+    """For a law that a controller called with fewer arguments than it takes, the likely cause: a
+    :class:`~labsupport.trajectories.Reference` (or ``Gains``) passed whole where the law takes
+    its parts, which then fill the places of the arguments after it."""
+    if isinstance(err, TypeError) and "missing" in str(err) and "argument" in str(err):
+        return (
+            "; a law inside it was called with fewer arguments than it takes: a Reference or Gains "
+            "passed whole counts as one argument, so unpack it with *, as in *reference(t)"
+        )
     return ""
 
 

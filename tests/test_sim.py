@@ -11,6 +11,7 @@ import pytest
 import labsupport  # noqa: F401
 from labsupport import sim, validate
 from labsupport.controllers.joint_space import pd_joint_torque
+from labsupport.controllers.operational_space import os_ct_torque
 from labsupport.dynamics import mass_matrix
 from labsupport.plants import load_model, model_path
 from labsupport.trajectories import Reference, circle_2d, sample
@@ -884,3 +885,20 @@ def test_a_state_set_by_hand_that_a_run_would_not_start_from_is_warned_about(arm
         mujoco.mj_resetData(model, data)
         data.qpos[:] = [0.7, 0.4]
         assert sim.simulate(model, data, hold, 0.01, q0=data.qpos.copy()).q[0].tolist() == [0.7, 0.4]
+
+
+def test_a_reference_passed_whole_to_a_law_is_told_to_unpack_it(arm):
+    """os_ct_torque(model, data, site, circle(t), Kp, Kd): the Reference fills x_d, and Kp, Kd the
+    places of the velocity and acceleration, so Python says Kp and Kd are missing, which the
+    student did pass. The single joint's loop said why; the MuJoCo loop now says it too. A
+    controller that itself takes other arguments than (model, data) is told how simulate calls it."""
+    model, data = arm
+    circle = partial(circle_2d, center=(0.5, 0.2), radius=0.15, period=6.0)
+
+    def whole(model, data):
+        return os_ct_torque(model, data, "end_effector", circle(data.time), 64.0, 16.0)
+
+    with pytest.raises(TypeError, match=r"missing 2 required .*'Kp' and 'Kd'; .*unpack it with \*"):
+        sim.simulate(model, data, whole, 0.1, q0=[0.2, 0.9])
+    with pytest.raises(TypeError, match=r"simulate calls controller\(model, data\), with these two arguments only"):
+        sim.simulate(model, data, lambda model, data, Kp: np.zeros(2), 0.1, q0=[0.2, 0.9])
