@@ -2,7 +2,8 @@
 executed outputs, so page, code and results cannot drift apart.
 
 * :func:`glue` stores a value under a name with MyST-NB, so a page's text can cite it with
-  ``{glue:text}`name:.3f```. Without MyST-NB (Colab) it does nothing.
+  ``{glue:text}`name:.3f```. Without MyST-NB (Colab), where the text shows that role as it is
+  written, it prints ``name = value`` instead, so the number the text cites is on the screen.
 * :func:`show_law` displays the source of a control law of :mod:`labsupport` as highlighted
   code (its docstring left out), right under the equation it implements.
 * :func:`show_figure` shows a figure with the text alternative the notebook writes for it from
@@ -37,16 +38,22 @@ PIXEL_DENSITY = 2
 
 def glue(name: str, value: Any, display: bool = False) -> None:
     """Record ``value`` under ``name`` for the book's ``{glue:...}`` roles; returns nothing, so a
-    cell that ends with it shows no stray output.
+    cell that ends with it shows no stray output in the book.
 
     NumPy scalars are stored as Python numbers, so format specs such as ``:.3f`` work on them
     (NumPy 2 writes ``np.float64(1.0)`` as their text form otherwise).
+
+    Without MyST-NB (Colab, or the package installed on its own) the notebook's Markdown shows
+    ``{glue:text}`name:.3f``` as it is written, so the value is printed as ``name = value``
+    (numbers to six significant digits): the student finds the number the text cites by its name.
     """
     if hasattr(value, "item") and getattr(value, "shape", None) == ():
         value = value.item()
     try:
         from myst_nb import glue as _glue
-    except ImportError:  # Colab or a bare kernel: nothing to record into
+    except ImportError:  # Colab or a bare kernel: nothing to record into, so show it
+        shown = f"{value:.6g}" if isinstance(value, float) else str(value)
+        print(f"{name} = {shown}")
         return
     _glue(name, value, display=display)
 

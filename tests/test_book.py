@@ -458,3 +458,23 @@ def test_show_law_displays_the_code_as_a_python_block(monkeypatch):
     assert "math" not in text
     with pytest.raises(ValueError, match="defined in a source file"):
         book.show_law(len)
+
+
+def test_glue_prints_the_value_where_no_book_can_fill_the_text_in(monkeypatch, capsys):
+    """On Colab (no MyST-NB) the Markdown shows {glue:text}`t1_tau_c:.2f` as written, and the value
+    was stored nowhere a student could see: glue now prints it by its name. Where MyST-NB is
+    present, it records the value (a NumPy scalar as a Python number) and prints nothing."""
+    import sys
+
+    monkeypatch.setitem(sys.modules, "myst_nb", None)  # import myst_nb now raises ImportError
+    book.glue("t1_tau_c", np.float64(5.0))
+    book.glue("t1_third", 1 / 3)
+    book.glue("t1_word", "never")
+    assert capsys.readouterr().out == "t1_tau_c = 5\nt1_third = 0.333333\nt1_word = never\n"
+
+    recorded = []
+    fake = type(sys)("myst_nb")
+    fake.glue = lambda name, value, display: recorded.append((name, value, type(value), display))
+    monkeypatch.setitem(sys.modules, "myst_nb", fake)
+    book.glue("t1_tau_c", np.float64(5.0))
+    assert recorded == [("t1_tau_c", 5.0, float, False)] and capsys.readouterr().out == ""
