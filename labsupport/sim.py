@@ -123,8 +123,10 @@ class Log:
         t: (N,) time at which the state was recorded [s] (the step's end with
             ``log_after_step``, its start otherwise).
         q, qdot: (N, nq), (N, nv) state at that time.
-        tau: (N, nu) torque the controller asked for over the step (after ``torque_limit``, and
-            a limited ``ctrlrange`` of a torque actuator).
+        tau: (N, nu) the controller's torque for the step, clipped to ``torque_limit`` and to
+            a limited ``ctrlrange`` of a torque actuator (a torque at such a limit may have been
+            asked for larger): the torque that acted, unless the actuators of an ``actuation``
+            mapping bound it in turn (:func:`labsupport.metrics.saturation`).
         ctrl: (N, nu) what was written to ``data.ctrl`` (equal to ``tau`` without an actuation
             mapping).
         ee: (N, 3) end-effector site position, or (N, 0) without a site.
