@@ -111,12 +111,14 @@ def overshoot(y, final: float, initial: float) -> float:
     return max(0.0, 100.0 * float(np.max((y - final) / span)))
 
 
-def _warn_swapped(y: np.ndarray, final: float, initial: float) -> None:
+def _warn_swapped(y: np.ndarray, final: float, initial: float) -> bool:
     """A ``RuntimeWarning`` where the response starts nearer ``final`` than ``initial`` and ends
     nearer ``initial``: the two given the other way round (the order is ``final, initial``) gave
     an overshoot of 0 and a settling time of NaN, numbers that look like a result. (A record that
-    starts already near ``final`` and stays there is a response that has settled.)"""
-    if abs(y[0] - final) < abs(y[0] - initial) and abs(y[-1] - initial) < abs(y[-1] - final):
+    starts already near ``final`` and stays there is a response that has settled.) Returns
+    whether it warned."""
+    swapped = abs(y[0] - final) < abs(y[0] - initial) and abs(y[-1] - initial) < abs(y[-1] - final)
+    if swapped:
         warnings.warn(
             f"the response goes from {y[0]:.4g} to {y[-1]:.4g}, from near final = {final:.4g} to near "
             f"initial = {initial:.4g}: are the two swapped? The order is (y, final, initial), final being "
@@ -124,24 +126,35 @@ def _warn_swapped(y: np.ndarray, final: float, initial: float) -> None:
             RuntimeWarning,
             stacklevel=3,
         )
+    return swapped
 
 
 def settling_time(t, y, final: float, initial: float, band: float = 0.02) -> float:
     r"""First time after which :math:`|y - y_f| \le \text{band}\,|y_f - y_0|` for good.
 
-    Returns ``nan`` if the response is still outside the band at the end of the record.
+    Returns ``nan``, with a ``RuntimeWarning`` that says so, if the response is still outside
+    the band at the end of the record.
     """
     y, t = _step_response(y, validate.times(t))
     final, initial = validate.number("final", final), validate.number("initial", initial)
     band = validate.band(band)
     if final == initial:
         raise ValueError("final and initial are equal: a step of zero size has no settling time")
-    _warn_swapped(y, final, initial)
+    swapped = _warn_swapped(y, final, initial)
     outside = np.abs(y - final) > band * abs(final - initial)
     if not outside.any():
         return float(t[0])
     last = int(np.flatnonzero(outside)[-1])
     if last == len(t) - 1:
+        if swapped:  # said already, and the likelier reason
+            return float("nan")
+        warnings.warn(
+            f"settling_time: the response is still outside its ±{100 * band:g} % band at the end of the record "
+            f"(t = {t[-1]:.4g} s), so it has no settling time there (NaN): record longer, or check that it "
+            "settles at all",
+            RuntimeWarning,
+            stacklevel=2,
+        )
         return float("nan")
     # interpolate the band crossing between the last sample outside and the next one inside
     e0, e1 = abs(y[last] - final), abs(y[last + 1] - final)
