@@ -21,7 +21,14 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from labsupport import validate
-from labsupport.sim import RUNAWAY_SPEED, Log, SimulationDiverged, fewer_arguments_hint, runaway_reason
+from labsupport.sim import (
+    NOT_A_NUMBER_ADVICE,
+    RUNAWAY_SPEED,
+    Log,
+    SimulationDiverged,
+    fewer_arguments_hint,
+    runaway_reason,
+)
 
 #: The lab's (textbook) parameters.
 LAB_M, LAB_m, LAB_r, LAB_b = 0.5, 1.0, 0.1, 0.1
@@ -158,7 +165,7 @@ class SingleJoint:
                 raise _BadTorque(f"tau must be a scalar, got shape {tau_arr.shape} at t = {t:.4f} s")
             tau = float(tau_arr.reshape(()))
             if not np.isfinite(tau):
-                raise _BadTorque(f"tau is {tau} (not finite) at t = {t:.4f} s, state = {x}")
+                raise _BadTorque(f"tau is {tau} (not finite) at t = {t:.4f} s, state = {x}. {NOT_A_NUMBER_ADVICE}")
             return tau
 
         evaluations = 0

@@ -665,13 +665,13 @@ def _raise_warning(k, state, q, qdot, start, tau, warn, log_after_step, said, ac
         reason += f" (MuJoCo: {said[-1].split('. ')[0]})"
     advice = None  # the runaway's
     if warn[_W_CTRL] and not np.isfinite(tau).all() and np.isfinite(qk).all() and np.isfinite(qdk).all():
-        advice = _NOT_A_NUMBER_ADVICE
+        advice = NOT_A_NUMBER_ADVICE
     raise SimulationDiverged(float(tk), qk, qdk, reason, advice)
 
 
 #: What to do about a torque that is not a number computed from a finite state: gains and
 #: clipping do not cause it, one of the law's inputs or operations does.
-_NOT_A_NUMBER_ADVICE = (
+NOT_A_NUMBER_ADVICE = (
     "The state is finite, so the law computed NaN or inf from something it was given or did: check "
     "the references and gains it is passed (a None becomes NaN in a NumPy array), a division by "
     "zero, and arrays it reads before they are filled."

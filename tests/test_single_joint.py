@@ -623,3 +623,10 @@ def test_a_stable_but_very_stiff_design_is_not_called_a_runaway_sign_error():
     assert "past 100 rad/s" in said and "the speed at which a run stops as running away" in said
     assert "or it is so stiff that even a stable response moves this fast" in said and "radians" in said
     assert "Cartesian" not in said
+
+
+def test_a_nan_torque_from_a_nan_set_point_is_told_where_to_look():
+    """theta_d = NaN gave only "tau is nan (not finite)"; the MuJoCo loop's advice for a NaN
+    torque from a finite state (check the references and gains) now follows it here too."""
+    with pytest.raises(ValueError, match=r"tau is nan \(not finite\) .*check the references and gains it is passed"):
+        SingleJoint().simulate(pd_to(np.nan, 5.0, 1.0), 1.0)
