@@ -7,6 +7,7 @@ the scores do not depend on the machine's load, and a grade is reproduced by its
 import ast
 import csv
 import hashlib
+import json
 import os
 import re
 import shutil
@@ -134,22 +135,31 @@ def test_student_notebook_runs_and_reports_not_implemented(name, tmp_path):
 #: Small limits keep the hung notebooks quick; a correct notebook stays far below them.
 BUDGET = Budget(cell=8, run=40, call=3, check=30, idle=4, run_idle=12, check_idle=4)
 SEED = 20240917
-FULL = {"p1_ik": 3, "p1_pd": 2, "p1_ct": 3, "p1_reach": 2}
+#: Each check's full points, as the spec the batch reads gives them (a master's points edited and
+#: assigned move them here too).
+FULL = {c["name"]: c["points"] for c in json.loads((ROOT / "tests/autograder/problem1.json").read_text())["checks"]}
+
+
+def full_on(*checks: str) -> dict:
+    """Full points on ``checks``, none on the others."""
+    return {name: FULL[name] for name in checks}
+
+
 NOTHING = ["not implemented yet"]
 #: file -> (scores, status, words the reason must contain)
 EXPECTED = {
     "master.ipynb": (FULL, "graded", []),
     "student.ipynb": ({}, "graded", ["p1_ik: not implemented yet", "p1_reach: not implemented yet"]),
     "raises.ipynb": (
-        {"p1_ik": 3, "p1_pd": 2},
+        full_on("p1_ik", "p1_pd"),
         "graded",
         ["('ratio = 1 / 0   # a bug at the top') raised ZeroDivisionError", "work in progress"],
     ),
     "hangs_cell.ipynb": (FULL, "graded", ["timed out (cpu)"]),
     "hangs_forever.ipynb": ({}, "graded", ["cells waited more than 12 s in all without computing"]),
-    "hangs_in_call.ipynb": ({"p1_ik": 3, "p1_ct": 3, "p1_reach": 2}, "graded", ["p1_pd:", "did not return"]),
-    "returns_nan.ipynb": ({"p1_ik": 3, "p1_pd": 2}, "graded", ["contains NaN"]),
-    "deleted_cell.ipynb": ({"p1_ik": 3, "p1_ct": 3, "p1_reach": 2}, "graded", ["pd_torque is not defined"]),
+    "hangs_in_call.ipynb": (full_on("p1_ik", "p1_ct", "p1_reach"), "graded", ["p1_pd:", "did not return"]),
+    "returns_nan.ipynb": (full_on("p1_ik", "p1_pd"), "graded", ["contains NaN"]),
+    "deleted_cell.ipynb": (full_on("p1_ik", "p1_ct", "p1_reach"), "graded", ["pd_torque is not defined"]),
     "reordered.ipynb": (FULL, "graded", ["raised NameError"]),
     "invalid_json.ipynb": ({}, "unreadable", ["invalid JSON"]),
     "monkeypatch.ipynb": ({}, "graded", ["the notebook replaced"]),
@@ -157,7 +167,7 @@ EXPECTED = {
     "fake_outputs.ipynb": ({}, "graded", NOTHING),
     "kills_grader.ipynb": (FULL, "graded", []),  # nothing of the grader is within its reach
     "borrows_task_code.ipynb": (  # TODOs 1 and 3 answered through labsupport: right numbers, zero
-        {"p1_pd": 2},
+        full_on("p1_pd"),
         "graded",
         [
             "p1_ik: IK: labsupport.kinematics.planar_2r.Planar2R is off limits in a Problem TODO",
@@ -165,7 +175,7 @@ EXPECTED = {
         ],
     ),
     "hides_borrowed_code.ipynb": (  # the same, from a worker thread and a lazily computed value
-        {"p1_pd": 2},
+        full_on("p1_pd"),
         "graded",
         [
             "p1_ik: IK: labsupport.kinematics.planar_2r.Planar2R is off limits in a Problem TODO",
@@ -173,7 +183,7 @@ EXPECTED = {
         ],
     ),
     "carries_compiled_law.ipynb": (  # the law's code object carried in marshalled: no import, no file to see
-        {"p1_ik": 3, "p1_pd": 2},
+        full_on("p1_ik", "p1_pd"),
         "graded",
         [
             "p1_ct: CT: labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO",
@@ -181,7 +191,7 @@ EXPECTED = {
         ],
     ),
     "pickles_library_code.ipynb": (  # Task 3's PD compiled under a made-up file name, carried in a pickle
-        {"p1_ik": 3, "p1_ct": 3, "p1_reach": 2},
+        full_on("p1_ik", "p1_ct", "p1_reach"),
         "graded",
         [
             "p1_pd: PD: labsupport.controllers.joint_space.pd_joint_torque is off limits in a Problem TODO",
@@ -189,12 +199,12 @@ EXPECTED = {
         ],
     ),
     "pastes_law_source.ipynb": (  # Task 3's CT pasted as text into a cell: the notebook's own code
-        {"p1_ik": 3, "p1_pd": 2, "p1_ct": 3, "p1_reach": 2},
+        full_on("p1_ik", "p1_pd", "p1_ct", "p1_reach"),
         "graded",
         ["all checks passed"],
     ),
     "copies_law_source.ipynb": (  # the law's source copied with inspect and run with exec: no import to see
-        {"p1_ik": 3, "p1_pd": 2},
+        full_on("p1_ik", "p1_pd"),
         "graded",
         [
             "p1_ct: CT: labsupport.controllers.joint_space.ct_joint_torque is off limits in a Problem TODO",
@@ -230,13 +240,13 @@ EXPECTED = {
     # idle time: limited per cell (not over all cells together) and, over a check, in all
     "sleeps_between_cells.ipynb": (FULL, "graded", []),
     "lies_about_cpu.ipynb": (  # CPU is counted by the judge, whatever the notebook's process reports
-        {"p1_ik": 3, "p1_pd": 2, "p1_ct": 3},
+        full_on("p1_ik", "p1_pd", "p1_ct"),
         "graded",
         ["p1_reach:", "the check ran out of CPU time (30 s"],
     ),
     "forges_notes.ipynb": (FULL, "graded", ['reported an error in a form the sandbox never writes: "NOTE TO GRADER']),
     "sleeps_in_calls.ipynb": (
-        {"p1_ik": 3, "p1_pd": 2, "p1_ct": 3},
+        full_on("p1_ik", "p1_pd", "p1_ct"),
         "graded",
         ["p1_reach:", "the calls waited more than 4 s in all without computing"],
     ),
