@@ -22,7 +22,7 @@ import mujoco
 import nbformat
 import numpy as np
 import pytest
-from nbtools import carried_code
+from nbtools import carried_code, settings_of
 
 import labsupport
 import labsupport.controllers.joint_space as joint_space_alias
@@ -2227,24 +2227,10 @@ def test_a_slow_law_of_the_tracking_check_is_told_its_own_share(monkeypatch, cap
     assert "Note: ct_op_torque took " in out and "more than the 0.5 s the batch grader allows there" in out, out
 
 
-def _settings_of(notebook: str, first_name: str) -> dict:
-    """The settings that open the notebook's code cell starting with ``first_name``: its first
-    assignments of values made from NumPy and each other, evaluated."""
-    nb = nbformat.read(ROOT / "notebooks" / notebook, as_version=4)
-    cell = next(c for c in nb.cells if c.cell_type == "code" and c.source.startswith(first_name))
-    names = {"np": np}
-    for node in ast.parse(cell.source).body:  # up to the first statement that is not a setting
-        loads = {n.id for n in ast.walk(node) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Load)}
-        if not isinstance(node, ast.Assign) or not loads <= names.keys():
-            break
-        exec(compile(ast.Module([node], type_ignores=[]), notebook, "exec"), names)
-    return names
-
-
 def test_the_grader_runs_the_students_laws_with_the_problem_notebooks_own_settings():
     """A student sees the runs of their notebook; the batch grades runs from the same start, with the
     same gains and the same circle."""
-    p1 = _settings_of("problem1_reaching.ipynb", "q0 =")
+    p1 = settings_of("problem1_reaching.ipynb", "q0 =")
     np.testing.assert_array_equal(p1["q0"], problem1.Q0)
     assert p1["T_sim"] == problem1.DURATION
     assert (p1["Kp_pd"], p1["Kd_pd"], p1["Kp_ct"], p1["Kd_ct"]) == (
@@ -2253,12 +2239,12 @@ def test_the_grader_runs_the_students_laws_with_the_problem_notebooks_own_settin
         problem1.KP_CT,
         problem1.KD_CT,
     )
-    p2 = _settings_of("problem2_tracking.ipynb", "center, radius")
+    p2 = settings_of("problem2_tracking.ipynb", "center, radius")
     np.testing.assert_array_equal(p2["center"], problem2.CENTER)
     np.testing.assert_array_equal(p2["normal"], problem2.NORMAL)
     assert (p2["radius"], p2["freq"]) == (problem2.RADIUS, problem2.FREQUENCY)
     np.testing.assert_array_equal(p2["SHOULDER"], common.SHOULDER)
-    gains = _settings_of("problem2_tracking.ipynb", "wn_t, zeta_t")
+    gains = settings_of("problem2_tracking.ipynb", "wn_t, zeta_t")
     assert (gains["Kp_t"], gains["Kd_t"]) == (problem2.KP, problem2.KD)
 
 

@@ -10,6 +10,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from nbtools import settings_of
 
 import labsupport  # noqa: F401
 from labsupport import gains, metrics, sim, trajectories
@@ -21,7 +22,12 @@ from labsupport.kinematics import planar_2r as k2
 from labsupport.plants import SingleJoint, load_model
 from labsupport.trajectories import circle_2d, sinusoid
 
-CIRCLE = partial(circle_2d, center=(0.5, 0.2), radius=0.15, period=6.0)
+#: The lab's settings of Task 3, for which the figures below are pinned: the reach (3.1) and the
+#: circle tracking (3.2). The notebook's own settings are compared with them
+#: (test_task3_runs_with_the_settings_these_tests_pin).
+REACH = {"q0": (0.2, 0.3), "Kp_pd": 40.0, "Kd_pd": 1.0, "wn_ct": 10.0, "zeta_ct": 0.9, "T_reach": 3.0}
+TRACK = {"center": (0.5, 0.2), "radius": 0.15, "period": 6.0, "wn": 8.0, "zeta": 1.0, "T_track": 12.0}
+CIRCLE = partial(circle_2d, center=TRACK["center"], radius=TRACK["radius"], period=TRACK["period"])
 NOTEBOOKS = Path(__file__).resolve().parents[1] / "notebooks"
 
 
@@ -158,14 +164,31 @@ def reaching_runs():
     model, data = load_model("planar_2r")
     target = k2.sample_annulus(np.random.default_rng(42))
     q_d = k2.inverse_kinematics(target, branch="up")
-    Kp, Kd = gains.ct_gains(10.0, 0.9)
+    Kp, Kd = gains.ct_gains(REACH["wn_ct"], REACH["zeta_ct"])
     runs, rest = {}, np.zeros(2)
     for name, ctrl in (
-        ("PD", lambda m, d: js.pd_joint_torque(m, d, q_d, rest, 40.0, 1.0)),
+        ("PD", lambda m, d: js.pd_joint_torque(m, d, q_d, rest, REACH["Kp_pd"], REACH["Kd_pd"])),
         ("CT", lambda m, d: js.ct_joint_torque(m, d, q_d, rest, rest, Kp, Kd)),
     ):
-        runs[name] = sim.simulate(model, data, ctrl, 3.0, q0=[0.2, 0.3], site="end_effector", log_after_step=True)
+        runs[name] = sim.simulate(
+            model, data, ctrl, REACH["T_reach"], q0=REACH["q0"], site="end_effector", log_after_step=True
+        )
     return target, q_d, runs
+
+
+@pytest.mark.parametrize(("first", "pinned"), [("q0 =", REACH), ("center, radius, period =", TRACK)])
+def test_task3_runs_with_the_settings_these_tests_pin(first, pinned):
+    """The figures of Task 3 pinned here hold for the lab's settings. A setting changed in the
+    notebook (the circle's radius, a gain) moved numbers that no test reads, the prose's and the
+    alt texts' (a figure's text said 0.15 m for a circle of 0.12 m), and every test passed: it is
+    named here, with what else to update."""
+    notebook = settings_of("task3_planar_2r.ipynb", first)
+    for name, value in pinned.items():
+        assert np.array_equal(notebook[name], value), (
+            f"Task 3's notebook sets {name} = {notebook[name]!r}, the tests pin {value!r}: update "
+            "tests/test_task2_task3.py (REACH, TRACK and the figures pinned for them) and the page's prose "
+            "that quotes the lab's set-up and figures, then this test's pins"
+        )
 
 
 def test_task3_1_target_and_final_errors():
@@ -242,11 +265,11 @@ def ik_ct(model, Kp, Kd, duration=12.0):
     return controller
 
 
-def tracking_run(make, start_on_path=False, log_after_step=True, duration=12.0, wn=8.0):
+def tracking_run(make, start_on_path=False, log_after_step=True, duration=TRACK["T_track"], wn=TRACK["wn"]):
     model, data = load_model("planar_2r")
     q0 = k2.inverse_kinematics(CIRCLE(0.0).pos, branch="up")
     qdot0 = np.linalg.solve(k2.jacobian(q0), CIRCLE(0.0).vel) if start_on_path else np.zeros(2)
-    Kp, Kd = gains.ct_gains(wn, 1.0)
+    Kp, Kd = gains.ct_gains(wn, TRACK["zeta"])
     return sim.simulate(
         model,
         data,
