@@ -221,16 +221,27 @@ def models_folder():
     """The folder of shipped MJCF files, ``labsupport.models`` (the checkout's ``models/``).
 
     It exists only in an installed ``labsupport`` (``pip install -e .`` in a checkout maps
-    ``models/`` there); a checkout merely put on ``sys.path`` lacks it, and is told so.
+    ``models/`` there); a checkout merely put on ``sys.path`` lacks it, and is told so. A
+    checkout put on ``sys.path`` of a Python where another checkout is installed would find
+    that one's models, and run its own code on another arm without a word: it is refused.
     """
     try:
-        return resources.files("labsupport.models")
+        folder = resources.files("labsupport.models")
     except ModuleNotFoundError:
         raise ModuleNotFoundError(
             "labsupport's models (labsupport.models) are missing: this labsupport was imported from "
             f"{Path(__file__).parent.parent} without being installed. Install it: run "
             "`pip install -e .` in that folder"
         ) from None
+    checkout = Path(__file__).resolve().parent.parent
+    own = checkout / "models"
+    if (checkout / "pyproject.toml").is_file() and own.is_dir() and Path(str(folder)).resolve() != own.resolve():
+        raise ModuleNotFoundError(
+            f"labsupport was imported from the checkout {checkout}, but its models resolve to {folder}, "
+            "another checkout's (the one installed with pip install -e): run `pip install -e .` in "
+            f"{checkout}, or use the Python where it is installed"
+        )
+    return folder
 
 
 def model_path(name: str):

@@ -91,3 +91,22 @@ def test_a_checkout_on_the_path_but_not_installed_is_told_to_install(tmp_path):
     for line in lines[1:]:
         assert "labsupport.models" in line and "without being installed" in line
         assert f"imported from {tmp_path}" in line and "pip install -e ." in line
+
+
+def test_a_checkout_on_the_path_refuses_the_models_of_another_installed_checkout(tmp_path):
+    """A second checkout put on PYTHONPATH of a Python where this one is installed (pip install -e)
+    imported its own labsupport but this checkout's models: a mass changed in the second
+    checkout's models/ moved nothing, and its tests passed. Its models folder now refuses, naming
+    both checkouts and the command that installs the second."""
+    import shutil
+
+    other = tmp_path / "other"
+    shutil.copytree(ROOT / "labsupport", other / "labsupport", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(ROOT / "models", other / "models")
+    shutil.copy(ROOT / "pyproject.toml", other)
+    code = "from labsupport.plants import load_model\nload_model('planar_2r')\n"
+    env = {**os.environ, "PYTHONPATH": str(other)}
+    out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, env=env)
+    assert out.returncode != 0
+    assert f"labsupport was imported from the checkout {other}" in out.stderr, out.stderr
+    assert f"resolve to {ROOT / 'models'}" in out.stderr and "pip install -e ." in out.stderr
