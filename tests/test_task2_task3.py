@@ -370,15 +370,26 @@ def test_laws_are_their_formulas_at_random_states():
         a = xddot_d + Kd * (xdot_d - J @ qdot) + Kp * (x_d - k2.forward_kinematics(q)) - k2.jdot_qdot(q, qdot)
         expected = M @ np.linalg.solve(J, a) + h
         np.testing.assert_allclose(
-            osc.os_ct_torque(model, data, "end_effector", x_d, xdot_d, xddot_d, Kp, Kd), expected, rtol=1e-9, atol=1e-9
+            osc.os_ct_torque(model, data, "end_effector", x_d, xdot_d, xddot_d, Kp, Kd),
+            expected,
+            rtol=1e-9,
+            atol=1e-9,
+            err_msg="os_ct_torque (labsupport/controllers/operational_space.py) is not its equation here",
         )
         q_d, qdot_d, qddot_d = x_d * 3, xdot_d, xddot_d
         expected = M @ (qddot_d + Kd * (qdot_d - qdot) + Kp * (q_d - q)) + h
         np.testing.assert_allclose(
-            js.ct_joint_torque(model, data, q_d, qdot_d, qddot_d, Kp, Kd), expected, rtol=1e-12, atol=1e-12
+            js.ct_joint_torque(model, data, q_d, qdot_d, qddot_d, Kp, Kd),
+            expected,
+            rtol=1e-12,
+            atol=1e-12,
+            err_msg="ct_joint_torque (labsupport/controllers/joint_space.py) is not its equation here",
         )
         np.testing.assert_allclose(
-            js.pd_joint_torque(model, data, q_d, qdot_d, Kp, Kd), Kp * (q_d - q) + Kd * (qdot_d - qdot), rtol=1e-12
+            js.pd_joint_torque(model, data, q_d, qdot_d, Kp, Kd),
+            Kp * (q_d - q) + Kd * (qdot_d - qdot),
+            rtol=1e-12,
+            err_msg="pd_joint_torque (labsupport/controllers/joint_space.py) is not its equation here",
         )
 
 
