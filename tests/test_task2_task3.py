@@ -31,8 +31,11 @@ CIRCLE = partial(circle_2d, center=TRACK["center"], radius=TRACK["radius"], peri
 NOTEBOOKS = Path(__file__).resolve().parents[1] / "notebooks"
 
 
-def within(value, lab, rel=0.01):
-    return abs(value - lab) <= rel * abs(lab)
+def within(value, pinned, rel=0.01):
+    """``value`` within ``rel`` of a pinned figure: the lab's printed one where the page quotes
+    it (Task 2's RMS errors, Task 3.2's), this course's own result where the lab prints none
+    (Task 3.1's PD distance), so that a change that moves it is seen."""
+    return abs(value - pinned) <= rel * abs(pinned)
 
 
 # --- Task 2: the single joint in MuJoCo ------------------------------------------------
@@ -196,7 +199,7 @@ def test_task3_1_target_and_final_errors():
     np.testing.assert_allclose(target, [0.64138, -0.25918], atol=1e-5)
     np.testing.assert_allclose(np.degrees(q_d), [-56.731, 80.133], atol=1e-3)
     final = {name: 1000 * np.linalg.norm(log.ee[-1, :2] - target) for name, log in runs.items()}
-    assert within(final["PD"], 11.877)  # PD still rings after 3 s
+    assert within(final["PD"], 11.877)  # PD still rings after 3 s (the course's figure: the lab prints none)
     assert final["CT"] < 1e-6  # CT has converged (e^{-27} of 1 m)
 
 
