@@ -117,3 +117,25 @@ def test_every_tab_stop_shows_focus_and_formulas_are_not_tab_stops(tab_page, pag
     else:
         pytest.fail(f"{page}: {MAX_TABS} Tab presses did not reach the end of the page")
     assert not hidden, f"{page}: focused controls that show no focus indicator: {hidden}"
+
+
+@pytest.mark.parametrize("toggle", ["primary-toggle", "secondary-toggle"])
+def test_a_phone_menu_closed_with_escape_gives_the_focus_back(tab_page, toggle):
+    """At 390 px the contents open in a dialog from the button that toggles the sidebar. Escape
+    closed it, but the focus fell to the page's body, so a keyboard reader started again from the
+    top of the page (WCAG 2.1, 2.4.3); it now returns to the button (book/_static/course.js)."""
+    require_site()
+    tab = tab_page(NOTEBOOK_PAGES[0], width=390)
+    button = tab.locator(f"button.{toggle}").first
+    button.focus()
+    tab.keyboard.press("Enter")
+    tab.wait_for_timeout(300)
+    assert tab.evaluate("() => document.querySelector('dialog[open]') !== null"), (
+        f"Enter did not open the {toggle} menu"
+    )
+    tab.keyboard.press("Escape")
+    tab.wait_for_timeout(300)
+    assert tab.evaluate("() => document.querySelector('dialog[open]') === null"), "Escape did not close the menu"
+    focused = tab.evaluate(FOCUSED_JS)
+    assert focused and focused["tag"] == "BUTTON", f"after Escape the focus is on {focused or 'the page body'}"
+    assert tab.evaluate(f"() => document.activeElement.classList.contains('{toggle}')")
