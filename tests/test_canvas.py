@@ -1003,21 +1003,29 @@ def test_a_sandbox_that_cannot_start_ends_the_command_with_what_to_do(tmp_path, 
     )
 
 
+def _graded_then_failing(out, error: BaseException, monkeypatch) -> None:
+    """One Canvas run into ``out`` (a fake batch), after which the batch raises ``error``: the
+    next run is a regrade that fails once it has moved the first into ``out/previous``."""
+    monkeypatch.setattr(
+        canvas, "run_batch", lambda folder, spec_path, out, **options: fake_grade([])(folder, spec_path, out)
+    )
+    canvas.main(_cli_argv(out))
+
+    def run_batch(folder, spec_path, out, **options):
+        raise error
+
+    monkeypatch.setattr(canvas, "run_batch", run_batch)
+
+
 def test_a_regrade_that_cannot_grade_still_says_where_the_earlier_run_went(tmp_path, capsys, monkeypatch):
     """A regrade moves the earlier run into previous/ before it grades. When the grading then
     failed (here bubblewrap cannot start), the error was all the command said, and the earlier
     import seemed lost: the error now ends with where it went."""
     out = tmp_path / "out"
-    monkeypatch.setattr(
-        canvas, "run_batch", lambda folder, spec_path, out, **options: fake_grade([])(folder, spec_path, out)
+    _graded_then_failing(
+        out, isolation.SandboxUnavailable("bubblewrap (bwrap) is not installed: apt install bubblewrap"), monkeypatch
     )
-    canvas.main(_cli_argv(out))
     capsys.readouterr()
-
-    def run_batch(folder, spec_path, out, **options):
-        raise isolation.SandboxUnavailable("bubblewrap (bwrap) is not installed: apt install bubblewrap")
-
-    monkeypatch.setattr(canvas, "run_batch", run_batch)
     with pytest.raises(SystemExit) as stop:
         canvas.main(_cli_argv(out))
     assert stop.value.code == 2
@@ -1034,16 +1042,8 @@ def test_a_regrade_stopped_by_ctrl_c_says_where_the_earlier_run_went(tmp_path, c
     """Stopped mid-grading (Ctrl-C), a regrade printed only Python's traceback, although it had
     already moved the earlier import into previous/: it now says where, before the traceback."""
     out = tmp_path / "out"
-    monkeypatch.setattr(
-        canvas, "run_batch", lambda folder, spec_path, out, **options: fake_grade([])(folder, spec_path, out)
-    )
-    canvas.main(_cli_argv(out))
+    _graded_then_failing(out, KeyboardInterrupt(), monkeypatch)
     capsys.readouterr()
-
-    def run_batch(folder, spec_path, out, **options):
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(canvas, "run_batch", run_batch)
     with pytest.raises(KeyboardInterrupt):
         canvas.main(_cli_argv(out))
     assert capsys.readouterr().err == (
