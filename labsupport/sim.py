@@ -744,12 +744,16 @@ def _check_runaway(t, q, qdot):
 
 def runaway_reason(speed: float) -> str:
     """Why a run stopped at :data:`RUNAWAY_SPEED`, in words that do not claim the loop is
-    unstable: a stable but very stiff one reaches the bound too. The speed is rounded up, so that
-    it never reads as the bound itself."""
-    return (
-        f"a joint turns at {math.ceil(10 * speed) / 10:g} rad/s, past {RUNAWAY_SPEED:g} rad/s (about "
-        f"{RUNAWAY_SPEED * 30 / math.pi:.0f} rpm), the speed at which a run stops as running away"
+    unstable: a stable but very stiff one reaches the bound too. A speed past the bound is rounded
+    up, so that it never reads as the bound itself; one at the bound (the analytic joint stops
+    exactly there) is said to reach it."""
+    bound = (
+        f"{RUNAWAY_SPEED:g} rad/s (about {RUNAWAY_SPEED * 30 / math.pi:.0f} rpm), the speed at which a run "
+        "stops as running away"
     )
+    if speed <= RUNAWAY_SPEED:
+        return f"a joint reached {bound}"
+    return f"a joint turns at {math.ceil(10 * speed) / 10:g} rad/s, past {bound}"
 
 
 def _check_reference(reference, span: tuple[float, float], site_dims: int) -> None:
