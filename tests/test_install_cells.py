@@ -94,3 +94,21 @@ def test_install_cell_installs_labsupport_where_it_is_missing():
     spec = args[-1]
     assert spec == f"labsupport @ {nbtools.repository_url()}/archive/refs/heads/main.zip"
     assert kwargs.get("check") is True, "a failed install must stop the notebook"
+
+
+def test_the_colab_links_of_the_readme_and_the_home_page_open_the_configured_repository():
+    """Moving the repository meant editing the Colab links of README.md and book/intro.md by hand,
+    and no test read the README's: every Colab link there must open a notebook of the repository
+    and branch that _config.yml names, and one that exists."""
+    import re
+
+    owner_repo = nbtools.repository_url().removeprefix("https://github.com/")
+    prefix = f"https://colab.research.google.com/github/{owner_repo}/blob/{nbtools.repository_branch()}/"
+    for page in ("README.md", "book/intro.md"):
+        links = re.findall(
+            r"https://colab\.research\.google\.com/github/[^\s)`>\]]+", (nbtools.ROOT / page).read_text()
+        )
+        assert links, f"{page} has no Colab link"
+        for link in links:
+            assert link.startswith(prefix), f"{page}: {link} does not open {prefix}… (_config.yml's repository)"
+            assert (nbtools.ROOT / link.removeprefix(prefix)).is_file(), f"{page}: {link} opens no notebook of ours"
