@@ -27,6 +27,7 @@ from labsupport.sim import (
     Log,
     SimulationDiverged,
     fewer_arguments_hint,
+    raised_by_the_call,
     runaway_reason,
 )
 
@@ -50,8 +51,7 @@ def _torque_error_hint(err: Exception) -> str:
     the call itself, or an attribute asked of the state (``data.qpos``), a function of other
     arguments (t alone, model and data); raised inside it by a missing argument, a law handed a
     Reference or Gains whole where it takes their parts."""
-    called = err.__traceback__ is None or err.__traceback__.tb_next is None  # the call of torque itself
-    if called or isinstance(err, AttributeError):
+    if raised_by_the_call(err) or isinstance(err, AttributeError):
         return "; it is called as torque(t, state) with state = (theta, theta_dot), an array"
     return fewer_arguments_hint(err)
 

@@ -440,7 +440,7 @@ def _other_shape_hint(err: Exception) -> str:
             ". simulate calls controller(model, data); a function torque(t, state) is the form "
             "SingleJoint.simulate calls: here read the state from data.qpos and data.qvel"
         )
-    if err.__traceback__ is not None and err.__traceback__.tb_next is None:  # the call controller(model, data)
+    if raised_by_the_call(err):  # controller(model, data) itself: its parameters are others
         if isinstance(err, TypeError):
             return (
                 ". simulate calls controller(model, data), with these two arguments only: a law that takes "
@@ -449,6 +449,12 @@ def _other_shape_hint(err: Exception) -> str:
             )
         return ""
     return fewer_arguments_hint(err)
+
+
+def raised_by_the_call(err: Exception) -> bool:
+    """Whether ``err``, caught where a loop calls the controller, was raised by that call itself
+    (the function does not take the arguments it is called with), not inside the function."""
+    return err.__traceback__ is None or err.__traceback__.tb_next is None
 
 
 def fewer_arguments_hint(err: Exception) -> str:
