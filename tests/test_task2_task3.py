@@ -212,10 +212,11 @@ def test_task3_1_pd_is_the_stiffer_law_but_far_less_damped():
     data.qpos[:] = q_d
     mujoco.mj_forward(model, data)
     M = np.diag(mass_matrix(model, data))
-    np.testing.assert_allclose(M * gains.ct_gains(10.0, 0.9)[0], [35.342, 4.267], atol=1e-3)
-    assert np.all(M * 100.0 < 40.0)
-    np.testing.assert_allclose(2 * 0.9 * np.sqrt(40.0 * M), [6.767, 2.351], atol=1e-3)
-    zeta = 1.0 / (2 * np.sqrt(40.0 * M))
+    Kp_ct, Kp_pd, Kd_pd = gains.ct_gains(REACH["wn_ct"], REACH["zeta_ct"]).Kp, REACH["Kp_pd"], REACH["Kd_pd"]
+    np.testing.assert_allclose(M * Kp_ct, [35.342, 4.267], atol=1e-3)
+    assert Kp_ct == 100.0 and np.all(M * Kp_ct < Kp_pd)
+    np.testing.assert_allclose(2 * REACH["zeta_ct"] * np.sqrt(Kp_pd * M), [6.767, 2.351], atol=1e-3)
+    zeta = Kd_pd / (2 * np.sqrt(Kp_pd * M))
     np.testing.assert_allclose(zeta, [0.133, 0.383], atol=1e-3)
     # the ringing it predicts: PD's joint 2 error still swings through zero late in the run
     late = runs["PD"].t > 2.0
@@ -246,7 +247,7 @@ def test_ct_setpoint_response_is_the_analytic_second_order_one(wn, zeta):
 # --- Task 3.2: tracking -----------------------------------------------------------------
 
 
-def os_ct(model, Kp, Kd, duration=12.0):
+def os_ct(model, Kp, Kd, duration=TRACK["T_track"]):
     """OS-CT on the circle as the notebook writes it: reference sampled once, a closure calls the law."""
     ref = trajectories.sample(CIRCLE, model.opt.timestep, duration)
 
@@ -257,7 +258,7 @@ def os_ct(model, Kp, Kd, duration=12.0):
     return controller
 
 
-def ik_ct(model, Kp, Kd, duration=12.0):
+def ik_ct(model, Kp, Kd, duration=TRACK["T_track"]):
     """IK + joint CT: the circle turned into a joint reference once, then joint CT."""
     ref = trajectories.sample(lambda t: k2.joint_reference(CIRCLE(t)), model.opt.timestep, duration)
 
@@ -306,7 +307,7 @@ def test_task3_2_residual_explained_and_removed(make):
     assert np.all(both <= 0.1) and np.all(both < 0.005)
 
 
-def os_ct_without_jdot_qdot(model, Kp, Kd, duration=12.0):
+def os_ct_without_jdot_qdot(model, Kp, Kd, duration=TRACK["T_track"]):
     """Task 3's "Try it" law, OS-CT with its J̇q̇ term left out, as a controller like :func:`os_ct`."""
     ref = trajectories.sample(CIRCLE, model.opt.timestep, duration)
     site = model.site("end_effector").id
@@ -331,17 +332,17 @@ def test_task3_try_it_predictions_hold():
         log = tracking_run(os_ct_without_jdot_qdot, start_on_path=True, log_after_step=False, wn=wn)
         return log, np.flatnonzero(log.t >= 2.0)[::25]
 
-    log, after = run(8.0)
+    log, after = run(TRACK["wn"])
     error = np.linalg.norm(log.err[after], axis=1)
     model, data = load_model("planar_2r")
-    Kp, predicted = gains.ct_gains(8.0, 1.0).Kp, []
+    Kp, predicted = gains.ct_gains(TRACK["wn"], TRACK["zeta"]).Kp, []
     for k in after:
         data.qpos[:], data.qvel[:] = log.q[k], log.qdot[k]
         mujoco.mj_forward(model, data)
         predicted.append(np.linalg.norm(site_jdot_qdot(model, data, "end_effector")[:2]) / Kp)
     assert metrics.rms(error) == pytest.approx(metrics.rms(predicted), rel=0.1)
     assert 0.2e-3 < error.min() and error.max() < 2e-3  # of the order of a millimetre
-    faster, after_fast = run(16.0)
+    faster, after_fast = run(2 * TRACK["wn"])
     assert metrics.rms(error) / metrics.rms(np.linalg.norm(faster.err[after_fast], axis=1)) == pytest.approx(
         4.0, rel=0.15
     )
