@@ -31,6 +31,9 @@ from labsupport import validate
 MIN_ALT_WORDS = 5
 #: A line at least this wide [pt] (a reference drawn as a band) counts as a style of its own.
 WIDE_LINE = 3.0
+#: The label of the collapsed description under each figure: its text alternative, for the eye
+#: too, and for a screen reader that would move through it word by word.
+FIGURE_IN_WORDS = "The figure in words"
 #: Pixels of a figure's PNG per pixel it is shown at (CSS pixel): two, so that its labels stay
 #: sharp on phones and high-density screens, and when a reader zooms in on them.
 PIXEL_DENSITY = 2
@@ -123,12 +126,16 @@ def text_alternative(alt, what: str = "a figure") -> str:
 
 def show_figure(figure, alt: str, *, density: int = 1) -> None:
     """Show ``figure`` (a Matplotlib figure, or an RGB image array such as a rendered frame) with
-    ``alt``, its text alternative (WCAG 2.1, success criterion 1.1.1).
+    ``alt``, its text alternative (WCAG 2.1, success criterion 1.1.1), which is also written
+    under it, collapsed (:data:`FIGURE_IN_WORDS`): a sighted reader can read it too, and a
+    screen-reader user who opens it can move through it word by word, which an ``alt`` does
+    not allow.
 
     Write ``alt`` in the notebook from the values the figure plots (an f-string), saying what the
-    axes are, what each curve does and its key numbers. The output is one ``<img>`` holding the
-    PNG and ``alt``, so the built page, Jupyter and Colab all carry it (with the PNG itself and
-    ``alt`` as plain text for front ends without HTML). A Matplotlib figure is drawn as the inline
+    axes are, what each curve does and its key numbers. The output is one ``<figure>``: an
+    ``<img>`` holding the PNG and ``alt``, and the collapsed description. So the built page,
+    Jupyter and Colab all carry them (with the PNG itself and ``alt`` as plain text for front
+    ends without HTML). A Matplotlib figure is drawn as the inline
     backend draws it, with :data:`PIXEL_DENSITY` times the pixels each way, and shown at the
     inline backend's size; it is closed once shown, so the inline backend does not show it again.
     An image array is shown with ``density`` of its pixels to each CSS pixel each way: 1 for a
@@ -164,8 +171,10 @@ def show_figure(figure, alt: str, *, density: int = 1) -> None:
     data = base64.b64encode(png).decode("ascii")
     width = round(int.from_bytes(png[16:20], "big") / density)  # the PNG header's width, in CSS pixels
     html = (
+        f'<figure class="course-figure" style="margin: 0; max-width: {width}px">'
         f'<img src="data:image/png;base64,{data}" alt="{escape(text)}" width="{width}" '
         'style="max-width: 100%; height: auto">'
+        f"<details><summary>{FIGURE_IN_WORDS}</summary><p>{escape(text)}</p></details></figure>"
     )
     display(
         {"text/html": html, "image/png": data, "text/plain": text}, raw=True, metadata={"image/png": {"width": width}}

@@ -50,6 +50,18 @@ def test_the_image_carries_the_alt_and_the_png(shown):
     assert not plt.fignum_exists(fig.number)  # closed: the inline backend will not show it again
 
 
+def test_the_text_alternative_is_also_written_under_the_figure_collapsed(shown):
+    """A sighted reader can read the description too, and a screen-reader user can move through
+    it word by word, which an alt does not allow: the same text, escaped, in a <details> after
+    the image, inside one <figure> no wider than the image."""
+    book.show_figure(np.zeros((24, 32, 3), dtype=np.uint8), ALT + " <b>&")
+    html = shown[0]["text/html"]
+    escaped = ALT + " &lt;b&gt;&amp;"
+    assert html.startswith('<figure class="course-figure" style="margin: 0; max-width: 32px"><img ')
+    assert html.endswith(f"<details><summary>{book.FIGURE_IN_WORDS}</summary><p>{escaped}</p></details></figure>")
+    assert html.count(escaped) == 2 and "<b>" not in html
+
+
 def png_width(bundle) -> int:
     return int.from_bytes(base64.b64decode(bundle["image/png"])[16:20], "big")
 

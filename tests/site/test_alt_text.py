@@ -211,6 +211,38 @@ def test_the_tasks_show_their_figures():
         assert n_figures >= 1, f"{page} shows no figure: did the notebook run when the book was built?"
 
 
+def figures_without_description(html: str) -> tuple[list[str], int]:
+    """The notebook figures of a page whose text alternative is not also written under them, in
+    a collapsed ``<details>`` of their ``<figure>`` (labsupport.book.show_figure); and how many
+    figures there are."""
+    main = BeautifulSoup(html, "html.parser").find("main")
+    missing, images = [], [img for img in main.find_all("img") if img.get("src", "").startswith("data:image")]
+    for k, img in enumerate(images, 1):
+        figure = img.find_parent("figure")
+        details = figure.find("details") if figure is not None else None
+        text = " ".join(details.p.get_text(" ").split()) if details is not None and details.p else None
+        if details is None or details.summary is None or details.has_attr("open") or text != img.get("alt"):
+            missing.append(f"figure {k} of {len(images)} ({img.get('alt', '')[:50]!r}): found {text!r}")
+    return missing, len(images)
+
+
+def test_rules_find_a_figure_whose_description_is_missing_or_differs():
+    img = '<img src="data:image/png;base64,AAAA" alt="Speed rises to 10 rad/s within five seconds.">'
+    written = "<details><summary>The figure in words</summary><p>Speed rises to 10 rad/s within five seconds.</p></details>"
+    assert figures_without_description(_main(f"<figure>{img}{written}</figure>")) == ([], 1)
+    for body in (img, f"<figure>{img}</figure>", f"<figure>{img}{written.replace('10', '12')}</figure>"):
+        assert len(figures_without_description(_main(body))[0]) == 1, body
+
+
+@pytest.mark.parametrize("page", [p for p in toc_pages() if is_notebook(p)])
+def test_every_figure_has_its_description_written_under_it(page):
+    """A sighted reader can read a figure's text alternative too, and a screen-reader user can
+    move through it word by word, which an alt does not allow (WAI's tutorial on complex images)."""
+    missing, n = figures_without_description((require_site() / f"{page}.html").read_text(encoding="utf-8"))
+    assert not missing, f"{page}: " + " | ".join(missing)
+    assert n >= 1 or not page.startswith("notebooks/task"), f"{page} shows no figure"
+
+
 # --------------------------------------------------------------------------------------------
 # The notebooks' sources: every figure is shown with a text alternative computed from its values
 # --------------------------------------------------------------------------------------------
