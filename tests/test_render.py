@@ -808,7 +808,7 @@ def test_a_picture_shows_the_tip_where_the_camera_sees_it_and_the_path_in_blue(t
 
 
 SHARP_PICTURE_SCRIPT = r"""
-import base64, io, json
+import base64, io, json, re
 import labsupport
 import mujoco
 import numpy as np
@@ -824,7 +824,8 @@ for name in ("spatial_3r", "planar_2r"):  # offscreen buffers of 960 x 720 and M
     render.show_picture(model, data, description=f"The {name} arm at q = 0, seen from its camera.")  # 480 x 360
     bundle, metadata = shown.pop()
     png = Image.open(io.BytesIO(base64.b64decode(bundle["image/png"])))
-    result[name] = {"size": list(png.size), "shown": metadata["image/png"]["width"], "html": bundle["text/html"][-60:]}
+    img = re.search(r"<img [^>]*>", bundle["text/html"]).group()
+    result[name] = {"size": list(png.size), "shown": metadata["image/png"]["width"], "img": img[-60:]}
 model, data = load_model("spatial_3r")
 data.qpos[:] = [0.4, 0.5, -0.9]
 mujoco.mj_forward(model, data)
@@ -848,7 +849,7 @@ def test_a_picture_has_twice_the_pixels_where_the_buffer_holds_them(tmp_path):
     result = _run_script(tmp_path, SHARP_PICTURE_SCRIPT, MUJOCO_GL="egl")
     assert result["spatial_3r"]["size"] == [960, 720] and result["spatial_3r"]["shown"] == 480
     assert result["planar_2r"]["size"] == [480, 360] and result["planar_2r"]["shown"] == 480
-    assert all('width="480"' in result[name]["html"] for name in ("spatial_3r", "planar_2r"))
+    assert all('width="480"' in result[name]["img"] for name in ("spatial_3r", "planar_2r"))
     trace = result["trace"]
     assert trace["shapes"] == [[240, 320, 3], [480, 640, 3]]
     assert 3.0 < trace["blue"][1] / trace["blue"][0] < 5.0, trace

@@ -227,8 +227,9 @@ def figures_without_description(html: str) -> tuple[list[str], int]:
 
 
 def test_rules_find_a_figure_whose_description_is_missing_or_differs():
-    img = '<img src="data:image/png;base64,AAAA" alt="Speed rises to 10 rad/s within five seconds.">'
-    written = "<details><summary>The figure in words</summary><p>Speed rises to 10 rad/s within five seconds.</p></details>"
+    text = "Speed rises to 10 rad/s within five seconds."
+    img = f'<img src="data:image/png;base64,AAAA" alt="{text}">'
+    written = f"<details><summary>The figure in words</summary><p>{text}</p></details>"
     assert figures_without_description(_main(f"<figure>{img}{written}</figure>")) == ([], 1)
     for body in (img, f"<figure>{img}</figure>", f"<figure>{img}{written.replace('10', '12')}</figure>"):
         assert len(figures_without_description(_main(body))[0]) == 1, body
