@@ -340,6 +340,8 @@ def simulate(
                 tau = controller(model, data)
             except _CONTROLLER_ERRORS as err:
                 raise _controller_failed(err, model, data) from err
+            except KeyboardInterrupt as err:  # the kernel interrupted: say where the run was
+                raise KeyboardInterrupt(_interrupted(name, data.time, duration)) from err
             if k == checked:
                 checked = 2 * k or 1
                 if why := state_written(name, data, *before):
@@ -419,6 +421,16 @@ _CONTROLLER_ERRORS = (
 CONTROLLER_RAISED = "the controller raised"
 
 
+def _interrupted(name: str, t: float, duration: float) -> str:
+    """What a run stopped by the kernel's interrupt (Ctrl-C, Jupyter's stop button) says: where it
+    was, and why a controller may never return."""
+    return (
+        f"the run was stopped at t = {t:.4f} s of {duration:g} s, inside {name}: if it "
+        "seemed never to return, look in it for a loop that does not end (an IK iterating toward a "
+        "tolerance it cannot reach, say); the traceback above shows the line it was on"
+    )
+
+
 def _other_shape_hint(err: Exception) -> str:
     """Why a controller may treat MuJoCo's model or data as something else: a law of the analytic
     single joint (Task 1), which takes a ``SingleJoint``, or a ``torque(t, state)`` function."""
@@ -458,13 +470,16 @@ def raised_by_the_call(err: Exception) -> bool:
 
 
 def fewer_arguments_hint(err: Exception) -> str:
-    """For a law that a controller called with fewer arguments than it takes, the likely cause: a
-    :class:`~labsupport.trajectories.Reference` (or ``Gains``) passed whole where the law takes
-    its parts, which then fill the places of the arguments after it."""
+    """For a law that a controller called with fewer arguments than it takes, the two likely
+    causes: an argument left out (Python then names the *last* ones as missing, whichever was
+    left out), or a :class:`~labsupport.trajectories.Reference` (or ``Gains``) passed whole where
+    the law takes its parts, which then fill the places of the arguments after it."""
     if isinstance(err, TypeError) and "missing" in str(err) and "argument" in str(err):
         return (
-            "; a law inside it was called with fewer arguments than it takes: a Reference or Gains "
-            "passed whole counts as one argument, so unpack it with *, as in *reference(t)"
+            "; a law inside it was called with fewer arguments than it takes. Python names the last "
+            "ones as missing, whichever was left out: compare the call with the law's def line "
+            "(help(law) shows it). A Reference or Gains passed whole also counts as one argument: "
+            "unpack it with *, as in *reference(t)"
         )
     return ""
 

@@ -173,7 +173,8 @@ CASES = {
             0.1,
         ),
         r"missing 2 required positional arguments.*"
-        r"a Reference or Gains passed whole counts as one argument, so unpack it with \*",
+        r"compare the call with the law's def line .* A Reference or Gains passed whole also counts as one "
+        r"argument: unpack it with \*",
     ),
     "a single-joint law handed the MuJoCo model": (
         lambda a, g: sim.simulate(

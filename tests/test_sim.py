@@ -902,3 +902,41 @@ def test_a_reference_passed_whole_to_a_law_is_told_to_unpack_it(arm):
         sim.simulate(model, data, whole, 0.1, q0=[0.2, 0.9])
     with pytest.raises(TypeError, match=r"simulate calls controller\(model, data\), with these two arguments only"):
         sim.simulate(model, data, lambda model, data, Kp: np.zeros(2), 0.1, q0=[0.2, 0.9])
+
+
+def test_a_run_stopped_by_the_kernel_says_where_it_was_and_why_a_law_may_hang(arm):
+    """An IK loop that never ends hangs the run cell; the stop button then showed a bare
+    KeyboardInterrupt from inside the loop. It now says when the run stopped, inside which
+    controller, and what to look for, and keeps the traceback of the student's line."""
+    model, data = arm
+
+    def hangs_after_a_while(model, data):
+        if data.time > 0.01:
+            raise KeyboardInterrupt  # as the kernel's interrupt arrives in a loop that never ends
+        return np.zeros(2)
+
+    with pytest.raises(
+        KeyboardInterrupt,
+        match=r"stopped at t = 0\.01\d* s of 1 s, inside hangs_after_a_while: .*"
+        r"a loop that does not end",
+    ) as stopped:
+        sim.simulate(model, data, hangs_after_a_while, 1.0, q0=[0.2, 0.9])
+    assert isinstance(stopped.value.__cause__, KeyboardInterrupt)
+
+
+def test_an_argument_left_out_of_a_law_is_not_blamed_on_a_reference(arm):
+    """os_ct_torque called without its site: Python says Kd is missing, the last argument, though
+    the site was left out. The message says so first, and names the Reference only as the other
+    cause."""
+    model, data = arm
+    circle = partial(circle_2d, center=(0.5, 0.2), radius=0.15, period=6.0)
+
+    def no_site(model, data):
+        return os_ct_torque(model, data, *circle(data.time), 64.0, 16.0)
+
+    with pytest.raises(
+        TypeError,
+        match=r"missing 1 required .*'Kd'.*Python names the last ones as missing, "
+        r"whichever was left out: compare the call with the law's def line .* also counts",
+    ):
+        sim.simulate(model, data, no_site, 0.1, q0=[0.2, 0.9])
