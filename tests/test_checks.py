@@ -1159,6 +1159,64 @@ def test_an_ik_a_full_turn_off_is_named_by_the_tracking_run(master2):
     assert "over-the-top" not in track.message, track.message
 
 
+def test_problem_1_notes_ik_angles_outside_minus_pi_to_pi_without_taking_points(master1):
+    """Problem 1 gave full marks, without a word, to an IK returning q2 + 2π; Problem 2's checks
+    then cut points for it. Problem 1 keeps the marks and now says why Problem 2 will not."""
+    ik = master1["ik_3r"]
+    result = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, elbow_up) + np.array([0.0, 2 * np.pi, 0.0]))
+    assert (
+        result.score == 1
+        and "Note (no points taken): 25 elbow-up solutions have an angle outside (−π, π]" in result.message
+    )
+    assert "Note (no points taken)" not in grade("p1_ik", ik_3r=ik).message
+
+
+def test_an_ik_whose_elbow_angle_is_a_full_turn_off_is_named_by_the_tracking_run(master2):
+    """An IK that returns q2 + 2π reaches every point, and the notebook's own run, which starts on
+    that IK's pose, tracks well; the grader's run starts on the wrapped pose, so the joint CT
+    turns the shoulder a full turn. The run said the arm "faced away, on the over-the-top
+    solution"; it now names the angle outside (−π, π]."""
+    ik = master2["ik_3r"]
+
+    def ik_a_turn_on(x, elbow_up=True):
+        return ik(x, elbow_up) + np.array([0.0, 2 * np.pi, 0.0])
+
+    def ct_ik_joint_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        return ik_ct_law(model, data, x_d, xd_d, xdd_d, Kp, Kd, ik=ik_a_turn_on)
+
+    track = grade(
+        "p2_track", ct_op_torque=master2["ct_op_torque"], ct_ik_joint_torque=ct_ik_joint_torque, ik_3r=ik_a_turn_on
+    )
+    assert track.score == 0.5, track
+    assert "an angle outside (−π, π]" in track.message and "Wrap the IK's angles" in track.message, track.message
+    assert "over-the-top" not in track.message, track.message
+
+
+def test_a_torque_that_came_out_as_a_matrix_is_told_to_use_the_matrix_product():
+    """M * v in place of M @ v, or gains given as matrices, make the torque a 3 × 3 matrix: the
+    check said only its shape."""
+
+    def elementwise(model, data, q_d, Kp, Kd):
+        return mass_matrix(model, data) * (Kp * (q_d - data.qpos) - Kd * data.qvel) + bias_forces(data)
+
+    result = grade("p1_ct", ct_joint_torque=elementwise)
+    assert result.score == 0 and "has shape (3, 3), expected (3,)" in result.message, result
+    assert "M * v" in result.message and "use @ for a matrix times a vector" in result.message, result
+
+
+def test_swapped_gains_are_named_in_both_laws_of_problem_2(master2):
+    """Problem 1 named Kp and Kd exchanged; Problem 2 printed only the two torques, with a hint
+    about J̇q̇ at a test state at rest."""
+    for name, fname, words in (
+        ("p2_osct", "ct_op_torque", "position error x_d − x, Kd the velocity term ẋ_d − J q̇"),
+        ("p2_ikct", "ct_ik_joint_torque", "position error q_d − q, Kd the velocity term q̇_d − q̇"),
+    ):
+        law = master2[fname]
+        swapped = lambda model, data, x_d, xd_d, xdd_d, Kp, Kd, law=law: law(model, data, x_d, xd_d, xdd_d, Kd, Kp)  # noqa: E731
+        result = grade(name, **{fname: swapped})
+        assert result.score == 0.5 and "Kp and Kd are swapped" in result.message and words in result.message, result
+
+
 @pytest.mark.parametrize("seed", [PUBLIC_SEED, OTHER_SEED])
 def test_one_law_handed_in_for_both_earns_no_tracking_credit_for_the_copy(master2, seed):
     """ct_ik_joint_torque answered by calling ct_op_torque (or the other way round) tracks the

@@ -339,13 +339,14 @@ def own_gains_mistake(value: np.ndarray, Kp: float, Kd: float) -> Mistake:
     )
 
 
-def swapped_gains_mistake(value: np.ndarray) -> Mistake:
+def swapped_gains_mistake(value: np.ndarray, position: str = "q_d − q", velocity: str = "q̇") -> Mistake:
     """The torque of the right law with ``Kp`` and ``Kd`` exchanged (parameters taken in the other
-    order, say)."""
+    order, say); ``position`` and ``velocity`` are the terms they multiply, in the law's words."""
     return Mistake(
         value,
-        "the formula is right, but Kp and Kd are swapped: Kp multiplies the position error q_d − q, Kd the "
-        "velocity q̇ (check the order of the parameters in the def line, and of the arguments in the call)",
+        f"the formula is right, but Kp and Kd are swapped: Kp multiplies the position error {position}, Kd the "
+        f"velocity term {velocity} (check the order of the parameters in the def line, and of the arguments in "
+        "the call)",
         0.5,
     )
 

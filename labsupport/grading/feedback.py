@@ -195,6 +195,14 @@ def not_a_function_message(fname: str, kind: str) -> str:
     return f"{fname} should be a function, but it is of type {kind}"
 
 
+#: Why a law's torque may come out as a square matrix.
+MATRIX_TORQUE_HINT = (
+    "; a matrix times a vector written with * (M * v) makes a matrix, where M @ v is meant; so do gains "
+    "given as matrices (Kp = 400 * np.eye(3)) multiplied with *: use @ for a matrix times a vector, or "
+    "give the gains as numbers (or one number per joint)"
+)
+
+
 def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.ndarray:
     """Check a returned value is a finite vector of ``size`` numbers; say plainly what is wrong if not.
 
@@ -220,6 +228,8 @@ def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.nda
     if arr.shape != (size,):
         # a joint vector is set into data.qpos by the notebook's cells, which refuses a row or a column
         flat = f"; return it flat, np.ravel(...) (a row or a column of {size} numbers)" if arr.size == size else ""
+        if what == "torque" and arr.shape == (size, size):
+            flat = MATRIX_TORQUE_HINT
         raise StudentError(f"the {what} from {fname} has shape {arr.shape}, expected ({size},): {size} numbers{flat}")
     if not np.all(np.isfinite(arr)):
         note = validate.none_note(value)
@@ -423,8 +433,8 @@ JACOBIAN_ROWS_HINT = f" ({SITE_JACOBIAN_ROWS})"
 #: Why a law may be called with more or fewer arguments than it takes: a signature other than the
 #: stub's (the lab's own scaffold writes ``pd_torque(data, q_d, Kp, Kd)``, without ``model``).
 SIGNATURE_HINT = (
-    " (the checks and the runs call it with the arguments of the TODO's stub, model and data first: "
-    "keep the stub's def line as it was handed out)"
+    " (the checks and the runs call it with the arguments of the TODO's stub, in the stub's order, a "
+    "law's model and data first: keep the stub's def line as it was handed out)"
 )
 
 

@@ -137,7 +137,7 @@ def check_ik(probe: Probe, seed: int) -> Result:
     model = arm_model()
     rng = rng_for(seed, name)
     targets = [tip(model, draw_configuration(rng, elbow_up=bool(k % 2 == 0))) for k in range(N_TARGETS)]
-    good, total, problems, errors, worst = 0, 0, [], [], 0.0
+    good, total, problems, errors, worst, unwrapped = 0, 0, [], [], 0.0, []
     hung = dict.fromkeys((True, False), 0)  # calls per branch that did not return
     untried = dict.fromkeys((True, False), 0)  # calls not made after MAX_TIMEOUTS of them
     # one branch on every target, then the other: an IK that hangs on one branch does so after
@@ -169,6 +169,8 @@ def check_ik(probe: Probe, seed: int) -> Result:
         if problem is None:
             good += 1
             worst = max(worst, float(np.linalg.norm(tip(model, q) - x)))
+            if up and np.abs(q).max() > np.pi + 1e-6:  # the elbow-down branch's q3 lies below −π
+                unwrapped.append(q)
         else:
             problems.append(f"{where}: {problem}")
     if good == total:
@@ -176,6 +178,7 @@ def check_ik(probe: Probe, seed: int) -> Result:
             name,
             f"IK: all {total} solutions ({len(targets)} targets × 2 elbow branches) put the "
             f"end effector on the target, elbow on the side asked (worst error {worst:.1e} m)."
+            + _unwrapped_note(unwrapped)
             + _unreachable_note(probe),
         )
     if len(errors) == total and all(isinstance(err, NotImplementedYet) for err in errors):
@@ -190,7 +193,24 @@ def check_ik(probe: Probe, seed: int) -> Result:
         if n
     )
     wrong = problems[0].rstrip(".")
-    return failed(name, f"IK: {good} of {total} solutions are right. {first}, {wrong}.{skipped}", good / total)
+    return failed(
+        name,
+        f"IK: {good} of {total} solutions are right. {first}, {wrong}.{skipped}{_unwrapped_note(unwrapped)}",
+        good / total,
+    )
+
+
+def _unwrapped_note(unwrapped: list) -> str:
+    """A remark (no points) on right elbow-up solutions with an angle outside (−π, π], where the
+    elbow-up branch's angles lie: they reach the target, but Problem 2's joint CT, whose arm
+    starts on the wrapped pose, would turn that joint a full turn."""
+    if not unwrapped:
+        return ""
+    return (
+        f" Note (no points taken): {len(unwrapped)} elbow-up solutions have an angle outside (−π, π], such as q = "
+        f"{np.round(unwrapped[0], 4)}. They reach the target, but in Problem 2 the joint CT would turn that "
+        "joint a full turn (2π) toward such an angle: wrap them into (−π, π] (np.arctan2 returns angles there)."
+    )
 
 
 def _unreachable_note(probe: Probe) -> str:

@@ -48,6 +48,7 @@ from labsupport.grading.common import (
     rng_for,
     run_student,
     safe_point,
+    swapped_gains_mistake,
     terms,
     tip,
     tracking_cases,
@@ -254,6 +255,7 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
             M @ np.linalg.solve(J.T, xdd_d + fb - jdq) + h, "solve with J, not Jᵀ: q̈ = J⁻¹(...).", 0.0
         ),
         "own_gains": own_gains_mistake(law(xdd_d + KD * edot + KP * e - jdq), KP, KD),
+        "swapped_gains": swapped_gains_mistake(law(xdd_d + Kp * edot + Kd * e - jdq), "x_d − x", "ẋ_d − J q̇"),
         **_wrong_point_mistakes(model, state, law, x_d, xdd_d, Kp, Kd, edot, jdq),
     }
 
@@ -386,6 +388,9 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
             0.5,
         ),
         "own_gains": own_gains_mistake(M @ (qdd_d + KD * (qd_d - qdot) + KP * (q_d - q)) + h, KP, KD),
+        "swapped_gains": swapped_gains_mistake(
+            M @ (qdd_d + Kp * (qd_d - qdot) + Kd * (q_d - q)) + h, "q_d − q", "q̇_d − q̇"
+        ),
         "model_at_reference": Mistake(
             Td.M @ (qdd_d + fb) + Td.h,
             "M and h are taken at the reference (q_d, q̇_d); the law needs them at the arm's state (q, q̇), "
@@ -582,6 +587,18 @@ def _left_the_branch(model, log, every: int = 10, ik=None) -> str | None:
             f"by t = {log.t[k]:.2f} s the pan had swung round to q1 = {log.q[k, 0]:.2f} rad, "
             f"{pan_offset[k]:+.2f} rad from the target's azimuth atan2(y, x): does the IK return a q1 a full "
             f"turn (2π) from the arm's, outside (−π, π]?{BRANCH_ADVICE}"
+        )
+    q_start = ik(log.ref[0]) if ik is not None else None
+    if (  # the right pose, elbow up and facing the target, with an angle a turn off
+        q_start is not None
+        and np.abs(q_start).max() > np.pi + 1e-6
+        and elbow_height(model, q_start) > 0
+        and not pan_turned_round(q_start, log.ref[0])
+    ):
+        return (
+            f"your ik_3r gives q = {np.round(q_start, 3)} at the circle's start, an angle outside (−π, π]: the "
+            "arm starts on the same pose with its angles wrapped, so the joint CT drives that joint a full turn "
+            "(2π) round to yours. Wrap the IK's angles into (−π, π] (np.arctan2 returns angles there)"
         )
     for k in range(0, len(log.t), every):
         q, t = log.q[k], log.t[k]
