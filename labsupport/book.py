@@ -171,7 +171,7 @@ def show_figure(figure, alt: str, *, density: int = 1) -> None:
     data = base64.b64encode(png).decode("ascii")
     width = round(int.from_bytes(png[16:20], "big") / density)  # the PNG header's width, in CSS pixels
     html = (
-        f'<figure class="course-figure" style="margin: 0; max-width: {width}px">'
+        f'<figure class="course-figure" style="margin: 0; padding: 0; max-width: {width}px">'
         f'<img src="data:image/png;base64,{data}" alt="{escape(text)}" width="{width}" '
         'style="max-width: 100%; height: auto">'
         f"<details><summary>{FIGURE_IN_WORDS}</summary><p>{escape(text)}</p></details></figure>"

@@ -57,7 +57,7 @@ def test_the_text_alternative_is_also_written_under_the_figure_collapsed(shown):
     book.show_figure(np.zeros((24, 32, 3), dtype=np.uint8), ALT + " <b>&")
     html = shown[0]["text/html"]
     escaped = ALT + " &lt;b&gt;&amp;"
-    assert html.startswith('<figure class="course-figure" style="margin: 0; max-width: 32px"><img ')
+    assert html.startswith('<figure class="course-figure" style="margin: 0; padding: 0; max-width: 32px"><img ')
     assert html.endswith(f"<details><summary>{book.FIGURE_IN_WORDS}</summary><p>{escaped}</p></details></figure>")
     assert html.count(escaped) == 2 and "<b>" not in html
 
