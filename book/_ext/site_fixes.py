@@ -43,6 +43,11 @@ part of them is reachable by landmark.
   ``-`` then ``> tau`` as a minus sign. Each word of inline code that holds a hyphen (Sphinx
   writes each word as a ``span.pre``) gets the class ``keep-whole``, which ``course.css`` keeps
   on one line.
+* **Toggles named otherwise than they read.** sphinx-togglebutton names each ``<summary>`` that
+  shows a hidden code cell "Toggle hidden content" (``aria-label``), which replaces its visible
+  text, "Show code cell source", for a screen reader and for voice control, so a page of them
+  was a row of identical, unspeakable buttons (WCAG 2.1, 2.5.3 Label in Name). The label goes:
+  the summary is named by the text it shows.
 """
 
 from __future__ import annotations
@@ -52,6 +57,7 @@ import re
 from pathlib import Path
 
 _BIBLIOENTRY = 'role="doc-biblioentry"'
+_TOGGLE_LABEL = '<summary aria-label="Toggle hidden content">'
 _TITLE_ITEM = re.compile(
     r'(<div class="sidebar-primary-items__start sidebar-primary__section">\s*<div class="sidebar-primary-item")>'
 )
@@ -118,7 +124,8 @@ def fix_page_context(app, pagename, templatename, context, doctree):
 
 def fix_built_pages(app, exc):
     """``build-finished`` handler: remove the redundant Font Awesome script from every page, give
-    bibliography entries the list-item role, put the course title in a landmark, write glued
+    bibliography entries the list-item role, name each toggle by its text, put the course title
+    in a landmark, write glued
     numbers in exponent notation as powers of ten, keep each inline formula on one line with
     the punctuation against it, keep each hyphenated word of inline code whole, and keep one
     viewport declaration."""
@@ -128,6 +135,7 @@ def fix_built_pages(app, exc):
     for page in out.rglob("*.html"):
         html = page.read_text(encoding="utf-8")
         lighter = _FONTAWESOME_JS.sub("", html).replace(_BIBLIOENTRY, 'role="listitem"')
+        lighter = lighter.replace(_TOGGLE_LABEL, "<summary>")
         lighter = _TITLE_ITEM.sub(r'\1 role="navigation" aria-label="Course home">', lighter, count=1)
         lighter = _GLUED_EXPONENT.sub(_power_of_ten, lighter)
         lighter = _INLINE_MATH.sub(_math_with_its_punctuation, lighter)

@@ -213,3 +213,20 @@ def test_tables_fit_a_phone(on_every_page, width):
     wide = {page: [t for t in ts if t["width"] > t["room"] + 1] for page, ts in tables.items()}
     wide = {page: ts for page, ts in wide.items() if ts}
     assert not wide, f"tables wider than the column in a {width} px window: {wide}"
+
+
+@pytest.mark.parametrize("page", toc_pages())
+def test_every_toggle_is_named_by_the_text_it_shows(page):
+    """WCAG 2.1, 2.5.3 Label in Name: sphinx-togglebutton labelled each "Show code cell source"
+    summary "Toggle hidden content", so a screen reader announced, and voice control answered
+    to, a name the reader never sees (book/_ext/site_fixes.py takes the label off)."""
+    from bs4 import BeautifulSoup
+
+    main = BeautifulSoup((require_site() / f"{page}.html").read_text(encoding="utf-8"), "html.parser").find("main")
+    labelled = [
+        f"{summary['aria-label']!r} on {' '.join(summary.get_text(' ').split())!r}"
+        for summary in main.find_all("summary")
+        if summary.has_attr("aria-label")
+        and " ".join(summary["aria-label"].split()).lower() not in summary.get_text(" ").lower()
+    ]
+    assert not labelled, f"{page}: summaries named otherwise than they read: {labelled}"
