@@ -17,3 +17,43 @@ document.addEventListener("DOMContentLoaded", () => {
     }));
   }
 });
+
+/* Figures on a phone (labsupport.book.show_figure). A figure drawn for a 744 px column is shown
+   358 px wide on a phone, and its tick labels shrink to about 3 px. Where a figure is shown
+   narrower than it was drawn, a "Full size" toggle button under it shows it at the size it was
+   drawn, in a frame that scrolls sideways (and takes the keyboard's focus, so the arrow keys
+   scroll it too); pressed again, the figure fits the page again. Where the figure fits, the
+   button is hidden. */
+document.addEventListener("DOMContentLoaded", () => {
+  for (const figure of document.querySelectorAll("figure.course-figure")) {
+    const img = figure.querySelector("img");
+    if (!img) continue;
+    const frame = document.createElement("div");
+    frame.className = "course-figure-frame";
+    img.replaceWith(frame);
+    frame.append(img);
+    const button = document.createElement("button");
+    button.type = "button";
+    button.className = "course-figure-size";
+    button.textContent = "Full size";
+    button.setAttribute("aria-pressed", "false");
+    button.addEventListener("click", () => {
+      const full = figure.classList.toggle("full-size");
+      button.setAttribute("aria-pressed", String(full));
+      if (full) {
+        frame.tabIndex = 0;
+        frame.setAttribute("role", "group");
+        frame.setAttribute("aria-label", "The figure at full size: scroll sideways to see all of it");
+      } else {
+        for (const name of ["tabindex", "role", "aria-label"]) frame.removeAttribute(name);
+      }
+    });
+    frame.after(button);
+    const drawn = Number(img.getAttribute("width"));
+    const update = () => {
+      button.hidden = !figure.classList.contains("full-size") && img.clientWidth >= drawn - 1;
+    };
+    new ResizeObserver(update).observe(figure);
+    update();
+  }
+});

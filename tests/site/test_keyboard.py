@@ -139,3 +139,37 @@ def test_a_phone_menu_closed_with_escape_gives_the_focus_back(tab_page, toggle):
     focused = tab.evaluate(FOCUSED_JS)
     assert focused and focused["tag"] == "BUTTON", f"after Escape the focus is on {focused or 'the page body'}"
     assert tab.evaluate(f"() => document.activeElement.classList.contains('{toggle}')")
+
+
+FIGURE_SIZES_JS = r"""
+() => [...document.querySelectorAll('figure.course-figure')].map(f => {
+  const img = f.querySelector('img'), b = f.querySelector('button.course-figure-size');
+  const frame = f.querySelector('.course-figure-frame');
+  return {drawn: Number(img.getAttribute('width')), shown: img.clientWidth,
+          button: b ? (b.hidden ? 'hidden' : b.getAttribute('aria-pressed')) : null,
+          scrolls: frame ? frame.scrollWidth > frame.clientWidth + 1 : null, tabindex: frame && frame.tabIndex,
+          page: document.documentElement.scrollWidth <= window.innerWidth};
+})
+"""
+
+
+def test_a_figure_shrunk_on_a_phone_shows_at_full_size_from_the_keyboard(tab_page):
+    """At 390 px a figure drawn for a 744 px column is shown half as wide, its tick labels about 3 px
+    tall. A "Full size" toggle under each shrunk figure shows it at the size it was drawn, in a
+    frame that scrolls sideways while the page does not (book/_static/course.js); at 1280 px,
+    where the figures fit, there is no such button."""
+    require_site()
+    tab = tab_page("notebooks/task1_single_joint", width=390)
+    before = tab.evaluate(FIGURE_SIZES_JS)
+    assert len(before) >= 6 and all(f["shown"] < f["drawn"] - 1 and f["button"] == "false" for f in before), before
+    presses, focused = tab_until(tab, lambda f: f["tag"] == "BUTTON" and f["text"] == "Full size", limit=400)
+    assert presses and focus_is_visible(focused), focused
+    tab.keyboard.press("Enter")
+    after = tab.evaluate(FIGURE_SIZES_JS)
+    full = [f for f in after if f["button"] == "true"]
+    assert len(full) == 1 and full[0]["shown"] == full[0]["drawn"] and full[0]["scrolls"], after
+    assert full[0]["tabindex"] == 0 and all(f["page"] for f in after), after  # the page itself never scrolls sideways
+    tab.keyboard.press("Enter")
+    assert tab.evaluate(FIGURE_SIZES_JS) == before
+    wide = tab_page("notebooks/task1_single_joint").evaluate(FIGURE_SIZES_JS)
+    assert all(f["button"] == "hidden" for f in wide), wide
