@@ -230,3 +230,19 @@ def test_every_toggle_is_named_by_the_text_it_shows(page):
         and " ".join(summary["aria-label"].split()).lower() not in summary.get_text(" ").lower()
     ]
     assert not labelled, f"{page}: summaries named otherwise than they read: {labelled}"
+
+
+def test_the_reference_list_is_labelled_as_the_pages_cite():
+    """The pages cite by author and year ("Lynch and Park [2017]"), but the reference list was
+    labelled [1]–[6], and the links back to where each entry is cited were read out as "1", "2"
+    (book/_ext/author_year_labels.py labels it by author and year)."""
+    from bs4 import BeautifulSoup
+
+    soup = BeautifulSoup((require_site() / "book/references.html").read_text(encoding="utf-8"), "html.parser")
+    entries = soup.select("div.citation")
+    labels = [" ".join(entry.select_one("span.label").get_text("").split()) for entry in entries]
+    assert len(labels) >= 6 and len(set(labels)) == len(labels), labels
+    assert "[Lynch and Park 2017]" in labels and "[Khatib 1987]" in labels, labels
+    assert all(re.fullmatch(r"\[[A-Z][\w .-]* \d{4}[a-z]?\]", label) for label in labels), labels
+    links = [" ".join(a.get_text(" ").split()) for a in soup.select('a[role="doc-backlink"]')]
+    assert links and all(re.search(r"[A-Za-z]{3,}", text) for text in links), f"back-links read out as {links}"
