@@ -1204,6 +1204,30 @@ def test_a_torque_that_came_out_as_a_matrix_is_told_to_use_the_matrix_product():
     assert "M * v" in result.message and "use @ for a matrix times a vector" in result.message, result
 
 
+def test_a_def_line_in_another_order_than_the_stubs_is_named(master1, master2):
+    """def pd_torque(model, data, Kp, Kd, q_d): the checks pass (q_d, Kp, Kd) in the stub's order,
+    so each lands on another parameter; the check printed only the two torques it compared."""
+    pd, ct, op = master1["pd_torque"], master1["ct_joint_torque"], master2["ct_op_torque"]
+
+    def pd_torque(model, data, Kp, Kd, q_d):
+        return pd(model, data, q_d, Kp, Kd)
+
+    def ct_joint_torque(model, data, Kd, q_d, Kp):
+        return ct(model, data, q_d, Kp, Kd)
+
+    def ct_op_torque(model, data, Kp, Kd, x_d, xd_d, xdd_d):
+        return op(model, data, x_d, xd_d, xdd_d, Kp, Kd)
+
+    for name, law, said in (
+        ("p1_pd", pd_torque, "in the order (model, data, Kp, Kd, q_d), where the stub has (model, data, q_d, Kp"),
+        ("p1_ct", ct_joint_torque, "in the order (model, data, Kd, q_d, Kp), where the stub has (model, data, q_d"),
+        # the first state where it differs is at rest, where two orders give the same torque: neither is named
+        ("p2_osct", ct_op_torque, "in another order than the stub's (model, data, x_d, xd_d, xdd_d, Kp, Kd)"),
+    ):
+        result = grade(name, **{law.__name__: law})
+        assert result.score == 0.5 and f"your def line takes the arguments {said}" in result.message, result
+
+
 def test_swapped_gains_are_named_in_both_laws_of_problem_2(master2):
     """Problem 1 named Kp and Kd exchanged; Problem 2 printed only the two torques, with a hint
     about J̇q̇ at a test state at rest."""

@@ -17,6 +17,7 @@ r"""Pieces the Problems' checks share, none of them a reference solution.
 
 from __future__ import annotations
 
+import itertools
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -349,6 +350,44 @@ def swapped_gains_mistake(value: np.ndarray, position: str = "q_d − q", veloci
         "the call)",
         0.5,
     )
+
+
+def argument_order_mistakes(formula: Callable, args: tuple, names: tuple[str, ...]) -> dict[str, Mistake]:
+    """The torques of the right ``formula(*args)`` written with a def line that takes its
+    arguments after ``model, data`` in another order than the stub's ``names``: the checks pass
+    them in the stub's order, so each lands on another parameter. An order that only exchanges
+    Kp and Kd is :func:`swapped_gains_mistake`'s. Where two orders give the same torque at the
+    state (at rest, Kd and the desired velocity commute), the text names neither."""
+    n, stub = len(names), ", ".join(names)
+    swapped = (*range(n - 2), n - 1, n - 2)  # ..., Kd, Kp
+    torques = {}
+    for order in itertools.permutations(range(n)):  # names[k] sits at place order[k] of the def line
+        if order in (tuple(range(n)), swapped):
+            continue
+        try:
+            with np.errstate(all="ignore"):
+                value = np.asarray(formula(*(args[order[k]] for k in range(n))), dtype=float)
+        except (TypeError, ValueError, np.linalg.LinAlgError):
+            continue
+        if value.shape == (3,) and np.isfinite(value).all():
+            torques[order] = value
+    found = {}
+    for order, value in torques.items():
+        def_line = ", ".join(names[k] for k in sorted(range(n), key=lambda k: order[k]))
+        alike = sum(close(value, other) for other in torques.values()) > 1
+        which = (
+            "in another order than the stub's"
+            if alike
+            else f"in the order (model, data, {def_line}), where the stub has"
+        )
+        found[f"order_{''.join(map(str, order))}"] = Mistake(
+            value,
+            f"the formula is right, but your def line takes the arguments {which} (model, data, {stub}): "
+            "the checks and the runs pass them in the stub's order, so each lands on another parameter; keep "
+            "the stub's def line",
+            0.5,
+        )
+    return found
 
 
 def degrees_mistake(value_in_radians: np.ndarray, text: str = "", score: float = 0.25) -> Mistake:

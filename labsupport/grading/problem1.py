@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import itertools
 import warnings
+from functools import partial
 
 import numpy as np
 
@@ -25,6 +26,7 @@ from labsupport.grading.common import (
     GRAVITY_ONLY,
     INVERSE_MASS,
     Mistake,
+    argument_order_mistakes,
     arm_model,
     degrees_mistake,
     draw_configuration,
@@ -282,6 +284,10 @@ def _check_joint_law(
     return passed(name, f"{label}: {function} gives {summary} at every test state.")
 
 
+#: The arguments of the joint laws' stubs after ``model, data``.
+STUB_ARGUMENTS = ("q_d", "Kp", "Kd")
+
+
 def pd_law(T, state, q_d, Kp, Kd):
     return Kp * (q_d - state.q) - Kd * state.qdot
 
@@ -322,6 +328,7 @@ def _pd_mistakes(T, state, q_d, Kp, Kd):
         "degrees": degrees_mistake(np.degrees(Kp * e - Kd * qdot)),
         "own_gains": own_gains_mistake(KP_PD * e - KD_PD * qdot, KP_PD, KD_PD),
         "swapped_gains": swapped_gains_mistake(Kd * e - Kp * qdot),
+        **argument_order_mistakes(partial(pd_law, T, state), (q_d, Kp, Kd), STUB_ARGUMENTS),
     }
 
 
@@ -371,6 +378,7 @@ def _ct_mistakes(T, state, q_d, Kp, Kd):
         "degrees": degrees_mistake(M @ np.degrees(v) + h),
         "own_gains": own_gains_mistake(M @ (KP_CT * e - KD_CT * qdot) + h, KP_CT, KD_CT),
         "swapped_gains": swapped_gains_mistake(M @ (Kd * e - Kp * qdot) + h),
+        **argument_order_mistakes(partial(ct_law, T, state), (q_d, Kp, Kd), STUB_ARGUMENTS),
     }
 
 

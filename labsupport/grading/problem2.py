@@ -32,6 +32,7 @@ from labsupport.grading.common import (
     Case,
     Mistake,
     Verdict,
+    argument_order_mistakes,
     arm_model,
     call_along,
     data_at,
@@ -209,6 +210,9 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
     def law(a):
         return M @ np.linalg.solve(J, a) + h
 
+    def formula(x_d, xd_d, xdd_d, Kp, Kd):  # the whole law, as a function of its arguments
+        return law(xdd_d + Kd * (xd_d - J @ state.qdot) + Kp * (x_d - T.x) - jdq)
+
     return {
         "no_jdot": Mistake(
             law(xdd_d + fb),
@@ -257,6 +261,7 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
         "own_gains": own_gains_mistake(law(xdd_d + KD * edot + KP * e - jdq), KP, KD),
         "swapped_gains": swapped_gains_mistake(law(xdd_d + Kp * edot + Kd * e - jdq), "x_d − x", "ẋ_d − J q̇"),
         **_wrong_point_mistakes(model, state, law, x_d, xdd_d, Kp, Kd, edot, jdq),
+        **argument_order_mistakes(formula, (x_d, xd_d, xdd_d, Kp, Kd), ("x_d", "xd_d", "xdd_d", "Kp", "Kd")),
     }
 
 
