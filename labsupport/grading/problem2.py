@@ -581,7 +581,9 @@ def _left_the_branch(model, log, every: int = 10, ik=None) -> str | None:
 
     A pan angle more than three quarters of a turn from the reference's azimuth (which never
     crosses ±π) comes first: an IK whose q1 is a full turn (2π) from the arm's makes the joint CT
-    swing the arm round, whatever branch it passes through on the way. ``ik`` (the student's
+    swing the arm round, whatever branch it passes through on the way. Then an IK whose answer at
+    the circle's start is the right pose with an angle outside (−π, π]: the arm starts on the
+    wrapped pose, and the joint CT turns that joint a full turn to reach it. ``ik`` (the student's
     ``ik_3r`` as ``x -> q``, None where it fails) tells an IK that switches branch there from
     torques that let the arm fall off a reference that kept to its branch."""
     pan_offset = log.q[:, 0] - np.arctan2(log.ref[:, 1], log.ref[:, 0])
