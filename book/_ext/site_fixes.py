@@ -125,10 +125,9 @@ def fix_page_context(app, pagename, templatename, context, doctree):
 def fix_built_pages(app, exc):
     """``build-finished`` handler: remove the redundant Font Awesome script from every page, give
     bibliography entries the list-item role, name each toggle by its text, put the course title
-    in a landmark, write glued
-    numbers in exponent notation as powers of ten, keep each inline formula on one line with
-    the punctuation against it, keep each hyphenated word of inline code whole, and keep one
-    viewport declaration."""
+    in a landmark, write glued numbers in exponent notation as powers of ten, keep each inline
+    formula on one line with the punctuation against it, keep each hyphenated word of inline
+    code whole, and keep one viewport declaration."""
     if exc is not None or app.builder.format != "html":
         return
     out = Path(app.outdir)
