@@ -165,6 +165,13 @@ def wrap_angle(angle):
     return np.pi - (np.pi - angle) % (2 * np.pi)
 
 
+def has_unwrapped_angle(q) -> bool:
+    r"""Whether some angle of ``q`` lies beyond :math:`\pm\pi` (by more than a micro-radian,
+    so that rounding at the boundary does not count), where :func:`wrap_angle` would move it by
+    a full turn."""
+    return bool(np.abs(q).max() > np.pi + 1e-6)
+
+
 def over_the_top(q) -> np.ndarray:
     r"""The same tip reached with the pan half a turn round: :math:`q_1 \to q_1 + \pi`,
     :math:`q_2 \to -q_2`, :math:`q_3 \to -q_3 - \pi` (angles wrapped into :math:`(-\pi, \pi]`).

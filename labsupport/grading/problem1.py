@@ -33,6 +33,7 @@ from labsupport.grading.common import (
     elbow_height,
     formula_scoring,
     gravity,
+    has_unwrapped_angle,
     judge_torque,
     none_here_only,
     own_gains_mistake,
@@ -171,7 +172,7 @@ def check_ik(probe: Probe, seed: int) -> Result:
         if problem is None:
             good += 1
             worst = max(worst, float(np.linalg.norm(tip(model, q) - x)))
-            if up and np.abs(q).max() > np.pi + 1e-6:  # the elbow-down branch's q3 lies below −π
+            if up and has_unwrapped_angle(q):  # the elbow-down branch's q3 lies below −π
                 unwrapped.append(q)
         else:
             problems.append(f"{where}: {problem}")

@@ -40,6 +40,7 @@ from labsupport.grading.common import (
     elbow_height,
     formula_scoring,
     gravity,
+    has_unwrapped_angle,
     judge_torque,
     mirror_elbow,
     none_here_only,
@@ -598,7 +599,7 @@ def _left_the_branch(model, log, every: int = 10, ik=None) -> str | None:
     q_start = ik(log.ref[0]) if ik is not None else None
     if (  # the right pose, elbow up and facing the target, with an angle a turn off
         q_start is not None
-        and np.abs(q_start).max() > np.pi + 1e-6
+        and has_unwrapped_angle(q_start)
         and elbow_height(model, q_start) > 0
         and not pan_turned_round(q_start, log.ref[0])
     ):
