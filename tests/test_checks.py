@@ -1987,6 +1987,40 @@ def test_the_notebooks_own_run_of_a_wrong_spring_is_not_blamed_on_the_time_step(
     assert "too stiff" not in said and "not a sign error" not in said
 
 
+def test_a_run_through_a_forbidden_law_says_so_where_it_runs(capsys):
+    """Problem 1's run cell printed a good result for a law that calls Task 3's joint CT, and
+    q_des for an IK built on the 2R arm's, without a word: only the check said the TODO scores
+    zero. The run now says it too, and still shows its result; a law of the student's own gets
+    no such note."""
+    from labsupport.grading import as_controller, attempt
+    from labsupport.plants import load_model
+    from labsupport.sim import simulate
+
+    model, data = load_model("spatial_3r")
+    zero = np.zeros(3)
+
+    def borrowed(model, data, q_d, Kp, Kd):
+        return joint_space_alias.ct_joint_torque(model, data, q_d, zero, zero, Kp, Kd)
+
+    def own(model, data, q_d, Kp, Kd):
+        return mass_matrix(model, data) @ (Kp * (q_d - data.qpos) - Kd * data.qvel) + bias_forces(data)
+
+    q_d = np.array([0.3, 0.5, 0.2])
+    logs = {}
+    for law in (borrowed, own):
+        ctrl = as_controller(law, q_d, 100.0, 18.0)
+        logs[law.__name__] = attempt("CT", partial(simulate, model, data, ctrl, 0.5, q0=problem1.Q0), ctrl, model)
+        said = capsys.readouterr().out
+        assert ("labsupport.controllers.joint_space.ct_joint_torque is off limits" in said) == (law is borrowed), said
+    np.testing.assert_allclose(logs["borrowed"].q, logs["own"].q, atol=1e-9)  # the same run, shown
+
+    q = attempt("IK", lambda: np.array([0.0, *planar_ik(np.array([0.5, 0.3]))]), joints=3)
+    assert q.shape == (3,)
+    said = capsys.readouterr().out
+    assert said.startswith("IK: it ran, but labsupport.kinematics.planar_2r.inverse_kinematics is off limits"), said
+    assert said.rstrip().endswith("This TODO scores zero in its check."), said
+
+
 def test_a_run_whose_law_raised_says_it_once_with_the_students_line(capsys):
     """The message "skipped, it raised TypeError: the controller raised TypeError at t = ..." said it
     twice, and gave no line of the student's code."""

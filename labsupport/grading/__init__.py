@@ -39,6 +39,7 @@ from labsupport.grading.feedback import (
     noting_state_write,
     where_raised,
 )
+from labsupport.grading.rules import ForbiddenUse, call_watched, forbidden_message
 from labsupport.grading.stability import Trace, explain_divergence, target_in_degrees
 from labsupport.sim import CONTROLLER_RAISED, SimulationDiverged, controller_name, state_written
 from labsupport.validate import short
@@ -116,6 +117,8 @@ class StudentController:
         self.moving = len(args) == 1 and callable(args[0])
         self.trace = Trace()  # the states of the last run, to explain a divergence
         self.before = (np.empty(0), np.empty(0))  # the state before each call, kept to see it changed
+        self.watched = False  # whether a call has been watched for a forbidden use yet
+        self.used = None  # the forbidden function that call ran, if any (rules.call_watched)
 
     def __call__(self, model, data):
         self.trace.record(data)
@@ -131,7 +134,11 @@ class StudentController:
             self.before = (np.empty_like(data.qpos), np.empty_like(data.qvel))  # once per model
         self.before[0][:], self.before[1][:] = data.qpos, data.qvel
         time = data.time
-        tau = self.fn(model, data, *extra)
+        if self.watched:
+            tau = self.fn(model, data, *extra)
+        else:  # the first call only: the watch slows every Python call it sees
+            self.watched = True
+            tau, self.used = call_watched(self.fn, model, data, *extra)
         if why := state_written(self.name, data, *self.before, time):
             raise StudentError(why)
         return as_vector(self.name, tau, model.nu, "torque")
@@ -158,12 +165,26 @@ def attempt(label: str, run: Callable, controller: StudentController | None = No
     remedies. With ``joints``, the result is a joint vector (an IK's answer), which must be that
     many finite numbers: one of another shape is refused here, in the checks' words, so the
     cells that use it wait instead of failing inside NumPy or MuJoCo.
+
+    A run that went through a part of labsupport a Problem TODO may not use (Task 3's joint CT,
+    the 2R arm's IK: :data:`~labsupport.grading.rules.FORBIDDEN`) still returns its result, with
+    a note that the TODO's check scores it zero: the run itself says so, not only the check.
+    ``run`` is watched whole when there is no ``controller``; a controller watches its first call.
     """
     try:
-        value = run()
-        return value if joints is None else as_vector(label, value, joints, "joint vector")
+        if controller is None:
+            value, used = call_watched(run)
+        else:
+            value, used = run(), controller.used
+        if joints is not None:
+            value = as_vector(label, value, joints, "joint vector")
+        if used is not None:
+            print(f"{label}: it ran, but {forbidden_message(used)[:-1]} in its check.")
+        return value
     except NotImplementedYet as err:
         print(f"{label}: skipped, {err}. Fill in the TODO above and run again.")
+    except ForbiddenUse as err:  # it raised after the forbidden call, or switched the watch off
+        print(f"{label}: skipped, {err}")
     except StudentError as err:
         print(f"{label}: skipped, {err}.")
     except SimulationDiverged as err:
