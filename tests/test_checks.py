@@ -2021,6 +2021,20 @@ def test_a_run_through_a_forbidden_law_says_so_where_it_runs(capsys):
     assert said.rstrip().endswith("This TODO scores zero in its check."), said
 
 
+def test_an_ik_answer_in_degrees_is_questioned_where_it_is_printed(capsys):
+    """Problem 1 printed ``q_des = [97.1 -51.7 27.8] rad`` and a predicted sag for it without a
+    remark. Angles beyond 3π (past even an answer a full turn off) now get a note; a full turn off
+    does not (the check's own note names that)."""
+    from labsupport.grading import attempt
+
+    q = np.array([1.694, -0.902, 0.485])
+    assert np.array_equal(attempt("IK", lambda: np.degrees(q), joints=3), np.degrees(q))
+    said = capsys.readouterr().out
+    assert said.startswith("IK: note: the angles [ 97.0591 -51.6808  27.7885] lie beyond 3π") and "degrees?" in said
+    attempt("IK", lambda: q + [0.0, 0.0, 2 * np.pi], joints=3)
+    assert capsys.readouterr().out == ""
+
+
 def test_a_run_whose_law_raised_says_it_once_with_the_students_line(capsys):
     """The message "skipped, it raised TypeError: the controller raised TypeError at t = ..." said it
     twice, and gave no line of the student's code."""

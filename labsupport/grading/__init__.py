@@ -164,7 +164,8 @@ def attempt(label: str, run: Callable, controller: StudentController | None = No
     explained: a damping too stiff for the time step is named as such, with its numbers and the
     remedies. With ``joints``, the result is a joint vector (an IK's answer), which must be that
     many finite numbers: one of another shape is refused here, in the checks' words, so the
-    cells that use it wait instead of failing inside NumPy or MuJoCo.
+    cells that use it wait instead of failing inside NumPy or MuJoCo; angles beyond :math:`3\\pi`
+    are returned with a note asking whether they are degrees.
 
     A run that went through a part of labsupport a Problem TODO may not use (Task 3's joint CT,
     the 2R arm's IK: :data:`~labsupport.grading.rules.FORBIDDEN`) still returns its result, with
@@ -178,6 +179,12 @@ def attempt(label: str, run: Callable, controller: StudentController | None = No
             value, used = run(), controller.used
         if joints is not None:
             value = as_vector(label, value, joints, "joint vector")
+            if np.abs(value).max() > 3 * np.pi:  # beyond even an angle a full turn off
+                print(
+                    f"{label}: note: the angles {short(value)} lie beyond 3π, where no joint angle in radians "
+                    "needs to be: are they in degrees? MuJoCo's angles are radians, so the runs below would "
+                    "aim elsewhere: return radians (no np.degrees)."
+                )
         if used is not None:
             print(f"{label}: it ran, but {forbidden_message(used)[:-1]} in its check.")
         return value
