@@ -2845,3 +2845,29 @@ def test_a_run_toward_a_target_in_degrees_is_told_the_degrees_not_the_gains(mast
     assert stability.target_in_degrees(master1["pd_torque"], (master1["q_des"], 400.0, 50.0)) is None
     x_far = np.array([10.0, 0.0, 0.0])  # a Cartesian target is not angles, however far
     assert stability.target_in_degrees(lambda model, data, x_d, Kp, Kd: None, (x_far, 1.0, 1.0)) is None
+
+
+def test_an_ik_that_never_returns_is_said_as_it_happens_and_named_in_the_cpu_note(monkeypatch, capsys):
+    """An IK that loops for ever kept the check silent for 40 s of CPU time (two calls a branch,
+    10 s each), then advised "a closed-form IK instead of an optimiser". Each stopped call is now
+    said at once, and the note points at the loop that never ends."""
+    import labsupport.grading as grading
+
+    monkeypatch.setattr(feedback, "CALL_CPU_SECONDS", 0.05)
+    monkeypatch.setattr(grading, "CALL_CPU_SECONDS", 0.05)
+    monkeypatch.setattr(grading, "CHECK_CPU_SECONDS", 0.3)
+
+    def ik_3r(x, elbow_up=True):
+        while True:
+            pass
+
+    grading.check("p1_ik", {"ik_3r": ik_3r})
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == (
+        "  … ik_3r was stopped after 0.05 s of CPU time without returning; the check goes on (a loop that never "
+        "ends makes it wait this long at each call it tries)."
+    )
+    assert lines[1:4] == [f"  … ik_3r stopped again ({n} calls so far)." for n in (2, 3, 4)]
+    assert lines[4].startswith("✘ [p1_ik] IK: 0 of 50 solutions are right.")
+    assert "4 of the calls were stopped at the 0.05 s one call may use: find the loop that never ends" in lines[5]
+    assert "closed-form IK" not in lines[5]

@@ -30,6 +30,7 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from labsupport.grading.feedback import (
+    CALL_CPU_SECONDS,
     CHECK_CPU_SECONDS,
     DirectProbe,
     NotImplementedYet,
@@ -82,25 +83,33 @@ def check(name: str, namespace: dict) -> Result | None:
     probe = DirectProbe(namespace)
     result = noting_state_write(checks[name](probe, PUBLIC_SEED), probe)
     print(result)
-    note = cpu_note(*probe.busiest)
+    note = cpu_note(*probe.busiest, stopped=probe.stopped)
     if note:
         print(note)
     return result
 
 
-def cpu_note(who: str, seconds: float, share: float = 1.0) -> str:
+def cpu_note(who: str, seconds: float, share: float = 1.0, stopped: int = 0) -> str:
     """A warning when ``who`` (the student's functions, or one law of a check that gives each of
     its laws a ``share``) took more than half the CPU time the batch grader gives them there,
-    ``share`` × :data:`~labsupport.grading.feedback.CHECK_CPU_SECONDS`, else ``""``."""
+    ``share`` × :data:`~labsupport.grading.feedback.CHECK_CPU_SECONDS`, else ``""``. Where
+    ``stopped`` calls ran out of the time one call may use, the advice is about a loop that
+    never ends, not about speed."""
     limit = share * CHECK_CPU_SECONDS
     if seconds <= limit / 2:
         return ""
     verdict = "more than" if seconds > limit else "over half of"
+    advice = (
+        f"{stopped} of the calls were stopped at the {CALL_CPU_SECONDS:g} s one call may use: find the loop "
+        "that never ends (a while loop whose condition stays true, an iteration with no cap on its steps)"
+        if stopped
+        else "Make them faster: a closed-form IK instead of an optimiser, fewer iterations, no work repeated "
+        "at every control step"
+    )
     return (
         f"  Note: {who} took {seconds:.3g} s of CPU time in this check, {verdict} the {limit:g} s the batch "
         "grader allows there (on a machine that may be slower than this one); past that, the check scores zero "
-        "there. Make them faster: a closed-form IK instead of an optimiser, fewer iterations, no work repeated "
-        "at every control step."
+        f"there. {advice}."
     )
 
 

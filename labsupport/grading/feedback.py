@@ -288,6 +288,8 @@ class DirectProbe(Probe):
     #: The parts of the check so far, each ``[label, CPU time of the student's calls in it [s],
     #: its share of the budget]``: a check begins as one part, its whole (:meth:`begin_part`).
     parts: list = field(default_factory=lambda: [["your functions", 0.0, 1.0]], repr=False)
+    #: How many calls were stopped at :data:`CALL_CPU_SECONDS`; each is said at once, as it happens.
+    stopped: int = 0
 
     def begin_part(self, label: str, share: float) -> None:
         self.parts.append([label, 0.0, share])
@@ -372,6 +374,14 @@ class DirectProbe(Probe):
             with cpu_limit(CALL_CPU_SECONDS):
                 value, used = call_watched(call_and_read)
         except _CallTimedOut:
+            self.stopped += 1
+            print(
+                f"  … {fname} was stopped after {CALL_CPU_SECONDS:g} s of CPU time without returning; the check "
+                "goes on (a loop that never ends makes it wait this long at each call it tries)."
+                if self.stopped == 1
+                else f"  … {fname} stopped again ({self.stopped} calls so far).",
+                flush=True,
+            )
             raise StudentTimeout(
                 f"{fname} did not return: it used {CALL_CPU_SECONDS:g} s of CPU time, the most one call may use (a "
                 "loop that never ends, in it or in a function it calls, such as an IK that never converges?)"
