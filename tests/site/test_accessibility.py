@@ -118,6 +118,24 @@ def test_videos_fit_a_phone(on_every_page, width):
     assert not cut, f"videos wider than their column in a {width} px window: {cut}"
 
 
+#: The weight of each video's caption, its written description, beside the weight of the page's
+#: body text.
+CAPTION_WEIGHT_JS = """() => {
+  const body = +getComputedStyle(document.querySelector('main p')).fontWeight;
+  return [...document.querySelectorAll('div.cell_output figure figcaption')].map(
+    c => ({caption: +getComputedStyle(c).fontWeight, body, text: c.textContent.slice(0, 40)}));
+}"""
+
+
+def test_video_captions_are_drawn_as_the_body_text(on_every_page):
+    """A video's caption is its only written description on the page; the theme drew it at
+    its light weight 300, thin and grey beside the body text."""
+    captions = on_every_page(CAPTION_WEIGHT_JS, 1280)
+    assert sum(len(c) for c in captions.values()) >= 4, "expected the Task 3 and Task 4 videos' captions"
+    light = {page: [c for c in found if c["caption"] < c["body"]] for page, found in captions.items()}
+    assert not any(light.values()), f"captions lighter than the body text: {light}"
+
+
 #: Every formula a reader would have to scroll sideways to read: a displayed one wider than its
 #: box, an inline one reaching past its paragraph; each with the start of its TeX.
 FORMULA_FIT_JS = """() => [...(window.MathJax?.startup?.document?.math ?? [])].map(item => {
