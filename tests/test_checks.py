@@ -592,6 +592,21 @@ def test_ik_ct_mistakes_are_named(master2):
             at_ref
         )
 
+    def one_term_at_reference(term):
+        def law(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+            q_d = ik(x_d)
+            J_d, _ = jacobian_at(model, q_d)
+            qd_d = np.linalg.solve(J_d, xd_d)
+            qdd_d = np.linalg.solve(J_d, xdd_d - jacobian_at(model, q_d, qd_d)[1])
+            at_ref = mujoco.MjData(model)
+            at_ref.qpos[:], at_ref.qvel[:] = q_d, qd_d
+            mujoco.mj_forward(model, at_ref)
+            M = mass_matrix(model, at_ref if term == "M" else data)
+            h = bias_forces(at_ref if term == "h" else data)
+            return M @ (qdd_d + Kd * (qd_d - data.qvel) + Kp * (q_d - data.qpos)) + h
+
+        return law
+
     def bias_subtracted(model, data):
         return -bias_forces(data)
 
@@ -617,6 +632,9 @@ def test_ik_ct_mistakes_are_named(master2):
         (down_and_a_turn_away, 0.0, "elbow-down pose with an angle a full turn (2π) away"),
         # these four were bare zeros, each pointing at the IK and the reference
         (model_at_reference, 0.75, "M and h are taken at the reference (q_d, q̇_d)"),
+        # these two got the generic "the torque differs" message
+        (one_term_at_reference("M"), 0.75, "M is taken at the reference (q_d, q̇_d), from the scratch MjData"),
+        (one_term_at_reference("h"), 0.75, "h is taken at the reference (q_d, q̇_d), from the scratch MjData"),
         (ik_variant(ik, kd=0.0), 0.5, "the damping term Kd (q̇_d − q̇) inside M(q)(...) is missing"),
         (ik_variant(ik, kd=-1.0), 0.5, "the damping has the wrong sign: Kd (q̇_d − q̇)"),
         (ik_variant(ik, bias=lambda model, data: bias_subtracted(model, data)), 0.25, "must be added, not subtracted"),

@@ -404,6 +404,19 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
             "still tracks.",
             0.75,
         ),
+        **{
+            f"{term}_at_reference": Mistake(
+                torque,
+                f"{said} is taken at the reference (q_d, q̇_d), from the scratch MjData, while {other} is the "
+                f"arm's; the law needs both at the arm's state (q, q̇): take {said} from the data the controller "
+                "is given too.",
+                0.75,
+            )
+            for term, said, other, torque in (
+                ("mass", "M", "h", Td.M @ (qdd_d + fb) + h),
+                ("bias", "h", "M", M @ (qdd_d + fb) + Td.h),
+            )
+        },
         "no_mass": Mistake(qdd_d + fb + h, "the mass matrix is missing: τ = M(q)(...) + h.", 0.25),
         "inverse_mass": Mistake(np.linalg.solve(M, qdd_d + fb) + h, INVERSE_MASS, 0.25),
         "no_ff": Mistake(M @ fb + h, "the feed-forward acceleration q̈_d is missing.", 0.25),
