@@ -580,19 +580,7 @@ def test_ik_ct_mistakes_are_named(master2):
             model, data, *ref, ik=ik, jdq_of=lambda J_d, q_d, qd_d: jacobian_at(model, data.qpos, data.qvel)[1]
         )
 
-    def model_at_reference(model, data, x_d, xd_d, xdd_d, Kp, Kd):
-        q_d = ik(x_d)
-        J_d, _ = jacobian_at(model, q_d)
-        qd_d = np.linalg.solve(J_d, xd_d)
-        qdd_d = np.linalg.solve(J_d, xdd_d - jacobian_at(model, q_d, qd_d)[1])
-        at_ref = mujoco.MjData(model)
-        at_ref.qpos[:], at_ref.qvel[:] = q_d, qd_d
-        mujoco.mj_forward(model, at_ref)
-        return mass_matrix(model, at_ref) @ (qdd_d + Kd * (qd_d - data.qvel) + Kp * (q_d - data.qpos)) + bias_forces(
-            at_ref
-        )
-
-    def one_term_at_reference(term):
+    def at_reference(terms):  # M, h or both taken on a scratch MjData at (q_d, q̇_d)
         def law(model, data, x_d, xd_d, xdd_d, Kp, Kd):
             q_d = ik(x_d)
             J_d, _ = jacobian_at(model, q_d)
@@ -601,8 +589,8 @@ def test_ik_ct_mistakes_are_named(master2):
             at_ref = mujoco.MjData(model)
             at_ref.qpos[:], at_ref.qvel[:] = q_d, qd_d
             mujoco.mj_forward(model, at_ref)
-            M = mass_matrix(model, at_ref if term == "M" else data)
-            h = bias_forces(at_ref if term == "h" else data)
+            M = mass_matrix(model, at_ref if "M" in terms else data)
+            h = bias_forces(at_ref if "h" in terms else data)
             return M @ (qdd_d + Kd * (qd_d - data.qvel) + Kp * (q_d - data.qpos)) + h
 
         return law
@@ -631,10 +619,10 @@ def test_ik_ct_mistakes_are_named(master2):
         (a_turn_away, 0.25, "elbow-up pose with an angle a full turn (2π) away"),
         (down_and_a_turn_away, 0.0, "elbow-down pose with an angle a full turn (2π) away"),
         # these four were bare zeros, each pointing at the IK and the reference
-        (model_at_reference, 0.75, "M and h are taken at the reference (q_d, q̇_d)"),
+        (at_reference("Mh"), 0.75, "M and h are taken at the reference (q_d, q̇_d)"),
         # these two got the generic "the torque differs" message
-        (one_term_at_reference("M"), 0.75, "M is taken at the reference (q_d, q̇_d), from the scratch MjData"),
-        (one_term_at_reference("h"), 0.75, "h is taken at the reference (q_d, q̇_d), from the scratch MjData"),
+        (at_reference("M"), 0.75, "M is taken at the reference (q_d, q̇_d), from the scratch MjData"),
+        (at_reference("h"), 0.75, "h is taken at the reference (q_d, q̇_d), from the scratch MjData"),
         (ik_variant(ik, kd=0.0), 0.5, "the damping term Kd (q̇_d − q̇) inside M(q)(...) is missing"),
         (ik_variant(ik, kd=-1.0), 0.5, "the damping has the wrong sign: Kd (q̇_d − q̇)"),
         (ik_variant(ik, bias=lambda model, data: bias_subtracted(model, data)), 0.25, "must be added, not subtracted"),
