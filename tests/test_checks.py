@@ -2877,3 +2877,32 @@ def test_an_ik_that_never_returns_is_said_as_it_happens_and_named_in_the_cpu_not
     assert lines[4].startswith("✘ [p1_ik] IK: 0 of 50 solutions are right.")
     assert "4 of the calls were stopped at the 0.05 s one call may use: find the loop that never ends" in lines[5]
     assert "closed-form IK" not in lines[5]
+
+
+def test_an_ik_that_never_returns_does_not_hang_the_run_cell(monkeypatch, capsys):
+    """Problem 1's run cell, ``attempt("IK", lambda: ik_3r(target_pos), joints=3)``, spun for ever
+    on an IK that never returns; a kernel interrupt then left ``logs`` and ``q_des`` undefined for
+    the cells below. It now gives up after the CPU time one call of the checks may use. In the
+    batch sandbox, which times each cell with the same timer, it leaves that timer alone."""
+    import signal
+
+    import labsupport.grading as grading
+
+    monkeypatch.setattr(grading, "CALL_CPU_SECONDS", 0.05)
+
+    def ik_3r(x, elbow_up=True):
+        while True:
+            pass
+
+    assert grading.attempt("IK", lambda: ik_3r(None), joints=3) is None
+    assert capsys.readouterr().out.startswith("IK: skipped, it did not return within 0.05 s of CPU time")
+
+    monkeypatch.setenv(grading.BATCH_ENV, "1")
+    previous = signal.signal(signal.SIGPROF, lambda *_: None)
+    try:
+        signal.setitimer(signal.ITIMER_PROF, 100.0)
+        assert grading.attempt("IK", lambda: np.zeros(3), joints=3).shape == (3,)
+        assert signal.getitimer(signal.ITIMER_PROF)[0] > 99.0  # still the cell's own timer
+    finally:
+        signal.setitimer(signal.ITIMER_PROF, 0)
+        signal.signal(signal.SIGPROF, previous)

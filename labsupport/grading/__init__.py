@@ -24,6 +24,7 @@ Modules:
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Callable, Mapping
 
@@ -32,11 +33,13 @@ import numpy as np
 from labsupport.grading.feedback import (
     CALL_CPU_SECONDS,
     CHECK_CPU_SECONDS,
+    CallTimedOut,
     DirectProbe,
     NotImplementedYet,
     Result,
     StudentError,
     as_vector,
+    cpu_limit,
     noting_state_write,
     where_raised,
 )
@@ -173,7 +176,9 @@ def attempt(label: str, run: Callable, controller: StudentController | None = No
     explained: a damping too stiff for the time step is named as such, with its numbers and the
     remedies. With ``joints``, the result is a joint vector (an IK's answer), which must be that
     many finite numbers: one of another shape is refused here, in the checks' words, so the
-    cells that use it wait instead of failing inside NumPy or MuJoCo; angles beyond :math:`3\\pi`
+    cells that use it wait instead of failing inside NumPy or MuJoCo, and it may use the CPU time one
+    call of the checks may (:data:`~labsupport.grading.feedback.CALL_CPU_SECONDS`), so that an IK that
+    never returns does not hang the notebook; angles beyond :math:`3\\pi`
     are returned with a note asking whether they are degrees.
 
     A run that went through a part of labsupport a Problem TODO may not use (Task 3's joint CT,
@@ -183,7 +188,10 @@ def attempt(label: str, run: Callable, controller: StudentController | None = No
     """
     try:
         if controller is None:
-            value, used = call_watched(run)
+            # the batch sandbox times its cells itself, with the same timer: this one would disarm it
+            limited = joints is not None and not os.environ.get(BATCH_ENV)
+            with cpu_limit(CALL_CPU_SECONDS) if limited else contextlib.nullcontext():
+                value, used = call_watched(run)
         else:
             value, used = run(), controller.used
         if joints is not None:
@@ -201,6 +209,12 @@ def attempt(label: str, run: Callable, controller: StudentController | None = No
         print(f"{label}: skipped, {err}. Fill in the TODO above and run again.")
     except ForbiddenUse as err:  # it raised after the forbidden call, or switched the watch off
         print(f"{label}: skipped, {err}")
+    except CallTimedOut:
+        print(
+            f"{label}: skipped, it did not return within {CALL_CPU_SECONDS:g} s of CPU time, the most one call "
+            "may use in the checks too (a loop that never ends, such as an IK that never converges?). Fix it, "
+            "run its cell, then this one again."
+        )
     except StudentError as err:
         print(f"{label}: skipped, {err}.")
     except SimulationDiverged as err:

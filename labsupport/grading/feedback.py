@@ -97,14 +97,14 @@ class StudentTimeout(StudentError):
     """The student's code did not answer within the time limit."""
 
 
-class _CallTimedOut(BaseException):
+class CallTimedOut(BaseException):
     """Raised inside the student's code when a call has used up its CPU time: a BaseException,
     so that an ``except Exception`` in a loop of theirs does not swallow it."""
 
 
 @contextlib.contextmanager
 def cpu_limit(seconds: float):
-    """Stop the block with :class:`_CallTimedOut` once the process has used ``seconds`` of CPU
+    """Stop the block with :class:`CallTimedOut` once the process has used ``seconds`` of CPU
     time in it (``ITIMER_PROF``), and every half second after, should the block catch it. Only
     where signals can be used, the main thread of a POSIX process (a notebook's kernel); no
     limit elsewhere."""
@@ -113,7 +113,7 @@ def cpu_limit(seconds: float):
         return
 
     def expire(signum, frame):
-        raise _CallTimedOut
+        raise CallTimedOut
 
     previous = signal.signal(signal.SIGPROF, expire)
     signal.setitimer(signal.ITIMER_PROF, seconds, 0.5)
@@ -373,7 +373,7 @@ class DirectProbe(Probe):
         try:
             with cpu_limit(CALL_CPU_SECONDS):
                 value, used = call_watched(call_and_read)
-        except _CallTimedOut:
+        except CallTimedOut:
             self.stopped += 1
             print(
                 f"  … {fname} was stopped after {CALL_CPU_SECONDS:g} s of CPU time without returning; the check "
