@@ -329,6 +329,25 @@ def test_a_law_written_with_the_labs_scaffold_signature_is_told_to_keep_the_stub
     result = grade("p1_pd", pd_torque=pd_torque)
     assert result.score == 0 and "takes 4 positional arguments but 5 were given" in result.message
     assert "keep the stub's def line as it was handed out" in result.message, result.message
+    assert "out, def pd_torque(model, data, q_d, Kp, Kd))" in result.message, result.message
+
+
+def test_the_signature_hint_quotes_each_stubs_def_line_as_handed_out():
+    """The hint quotes the def line of the stub, so an IK written as ik_3r(x) (elbow-up only), or
+    with its keyword renamed, is shown the line the checks call; each quoted line is the line
+    the student notebooks hand out."""
+    handed_out = set()
+    for path in sorted((ROOT / "notebooks").glob("problem*.ipynb")):
+        for cell in nbformat.read(path, as_version=4).cells:
+            handed_out.update(re.findall(r"^def \w+\(.*\)(?=:)", cell.source, re.M))
+    assert set(feedback.STUB_DEF_LINES.values()) <= handed_out, handed_out
+
+    def ik_3r(x):
+        return np.zeros(3)
+
+    result = grade("p1_ik", ik_3r=ik_3r)
+    assert "got an unexpected keyword argument 'elbow_up'" in result.message, result
+    assert "keep the stub's def line as it was handed out, def ik_3r(x, elbow_up=True))" in result.message, result
 
 
 def test_complex_numbers_are_named_in_the_notebook_and_in_the_batch_grader(master1):
@@ -2906,3 +2925,69 @@ def test_an_ik_that_never_returns_does_not_hang_the_run_cell(monkeypatch, capsys
     finally:
         signal.setitimer(signal.ITIMER_PROF, 0)
         signal.signal(signal.SIGPROF, previous)
+
+
+def test_an_ik_that_writes_into_its_target_keeps_its_points_and_is_told_so(master1, capsys):
+    """An IK working in place on its target (``x[2] -= L1``) got ✔, then the notebook's run cell,
+    which hands it the notebook's own target_pos, moved that target 1 m down, and the runs
+    reported errors of a metre with every check passed. The check now says so; a law that works
+    in place on its q_d (run on copies, grading.copies) gets no such note."""
+    ik = master1["ik_3r"]
+
+    def grade(name, **functions):  # with the notes check() adds
+        probe = DirectProbe(functions)
+        return feedback.noting_state_write(registry()[name](probe, PUBLIC_SEED), probe)
+
+    def ik_in_place(x, elbow_up=True):
+        x = np.asarray(x, dtype=float)  # the caller's array itself
+        x[2] -= 1.0
+        return ik(x + [0.0, 0.0, 1.0], elbow_up)
+
+    result = grade("p1_ik", ik_3r=ik_in_place)
+    assert result.score == 1.0 and "Note: ik_3r changed the array it was handed as x" in result.message, result
+    assert "Note" not in grade("p1_ik", ik_3r=ik).message
+
+    def pd_in_place(model, data, q_d, Kp, Kd):
+        q_d -= data.qpos
+        return Kp * q_d - Kd * data.qvel
+
+    result = grade("p1_pd", pd_torque=pd_in_place)
+    assert result.score == 1.0 and "Note" not in result.message, result
+
+
+def test_a_law_that_reads_the_notebooks_circle_is_told_to_use_its_arguments(master2):
+    """An OS-CT that tracks ``reference(data.time)``, the notebook's circle, in place of the x_d,
+    ẋ_d, ẍ_d it is handed ran perfectly in the notebook; its check blamed J̇q̇, and the tracking
+    check "state your law keeps between calls". Both now name the notebook's reference."""
+
+    def on_notebook_circle(law):
+        def reads_notebook(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+            r = circle_3d(data.time, problem2.CENTER, problem2.RADIUS, problem2.NORMAL, problem2.FREQUENCY)
+            return law(model, data, r.pos, r.vel, r.acc, Kp, Kd)
+
+        return reads_notebook
+
+    os_nb = on_notebook_circle(master2["ct_op_torque"])
+    result = grade("p2_osct", ct_op_torque=os_nb)
+    assert result.score == 0.5 and "with the notebook's reference, reference(data.time), in place of" in result.message
+    assert "J̇" not in result.message, result
+    laws = {name: master2[name] for name in ("ik_3r", "ct_op_torque", "ct_ik_joint_torque")}
+    result = grade("p2_track", **{**laws, "ct_ik_joint_torque": on_notebook_circle(master2["ct_ik_joint_torque"])})
+    assert result.score == 0.5, result
+    assert "IK+JS-CT: RMS error" in result.message and problem2.NOTEBOOK_CIRCLE in result.message, result
+    assert "state your law keeps" not in result.message, result
+
+
+def test_the_angular_rows_of_the_jacobian_are_named_by_the_singular_hint(master2):
+    """``site_jacobian(...)[3:]``, the angular rows, is singular on this arm (its pitch axes are
+    parallel). The hint listed the wrong point and a scratch data without kinematics, not rows."""
+
+    def angular_rows(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        J = site_jacobian(model, data, SITE)[3:]
+        x = data.site(SITE).xpos
+        a = xdd_d + Kd * (xd_d - J @ data.qvel) + Kp * (x_d - x) - site_jdot_qdot(model, data, SITE)[:3]
+        return mass_matrix(model, data) @ np.linalg.solve(J, a) + bias_forces(data)
+
+    result = grade("p2_osct", ct_op_torque=angular_rows)
+    assert result.score == 0 and "Singular matrix" in result.message, result
+    assert "its rows 0–2, [:3] (rows 3–5 map to the angular velocity" in result.message, result

@@ -347,6 +347,17 @@ def own_gains_mistake(value: np.ndarray, Kp: float, Kd: float) -> Mistake:
     )
 
 
+def own_reference_mistake(value: np.ndarray, arguments: str) -> Mistake:
+    """The torque of the right law on the notebook's own reference (its ``reference(t)`` at the
+    state's time) in place of the ``arguments`` the check passes."""
+    return Mistake(
+        value,
+        f"the formula is right, but with the notebook's reference, reference(data.time), in place of the "
+        f"{arguments} passed to the function: the checks and the grader pass others, so use the arguments.",
+        0.5,
+    )
+
+
 def swapped_gains_mistake(value: np.ndarray, position: str = "q_d − q", velocity: str = "q̇") -> Mistake:
     """The torque of the right law with ``Kp`` and ``Kd`` exchanged (parameters taken in the other
     order, say); ``position`` and ``velocity`` are the terms they multiply, in the law's words."""

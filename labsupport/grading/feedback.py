@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import inspect
 import os
 import re
 import signal
@@ -23,6 +24,7 @@ import sysconfig
 import threading
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from functools import cache
 from typing import Any
@@ -238,6 +240,21 @@ def as_vector(fname: str, value: Any, size: int, what: str = "result") -> np.nda
     return arr
 
 
+def arguments_written(fn: Callable, given: list[tuple[int, np.ndarray]], args: list) -> list[str]:
+    """The names of ``fn``'s parameters whose array changed in the call: ``given`` holds
+    ``(position, value before the call)`` for each array argument, ``args`` the arguments as
+    handed. A parameter without a name (``*args``, a builtin) is named by its position."""
+    try:
+        names = [p.name for p in inspect.signature(fn).parameters.values() if p.kind <= p.POSITIONAL_OR_KEYWORD]
+    except (TypeError, ValueError):
+        names = []
+    return [
+        names[i] if i < len(names) else f"argument {i + 1}"
+        for i, before in given
+        if not (isinstance(args[i], np.ndarray) and np.array_equal(args[i], before, equal_nan=True))
+    ]
+
+
 def fields_written(data, qpos_before, qvel_before) -> list[str]:
     """:func:`labsupport.sim.state_changes` for a note only: ``[]`` where the comparison itself
     fails (the student's process may have replaced NumPy's functions), so that looking for a
@@ -257,11 +274,19 @@ class Probe:
     """
 
     state_write: tuple[str, list[str]] | None = None
+    #: The first call that changed an array argument it was handed, as ``(function name,
+    #: [parameter names])`` (:func:`arguments_written`), else None.
+    argument_write: tuple[str, list[str]] | None = None
 
     def notice_state_write(self, fname: str, changed: list[str]) -> None:
         """Record that a call of ``fname`` changed the ``changed`` fields of the state it was handed."""
         if changed and self.state_write is None:
             self.state_write = (fname, list(changed))
+
+    def notice_argument_write(self, fname: str, changed: list[str]) -> None:
+        """Record that a call of ``fname`` changed the arrays it was handed as ``changed``."""
+        if changed and self.argument_write is None:
+            self.argument_write = (fname, list(changed))
 
     def begin_part(self, label: str, share: float) -> None:
         """Start a part of a check whose calls may use ``share`` of the check's CPU and idle
@@ -324,16 +349,19 @@ class DirectProbe(Probe):
         """The arguments as the student's function gets them: a State as (model, data), and
         every array or list a copy, so that a function that changes its arguments in place does
         not change the check's own targets (as in the batch grader, which sends copies). Also
-        returns each State with the data made of it, to see whether the call changed it."""
-        out, handed = [], []
+        returns each State with the data made of it, to see whether the call changed it, and each
+        array with its position and a copy, to see whether the call changed that."""
+        out, handed, given = [], [], []
         for a in args:
             if isinstance(a, State):
                 model, data = self._model_data(a)
                 out.extend((model, data))
                 handed.append((a, data))
             else:
+                if isinstance(a, np.ndarray):
+                    given.append((len(out), a.copy()))
                 out.append(copy.deepcopy(a))
-        return out, handed
+        return out, handed, given
 
     def _lookup(self, name: str):
         if name not in self.namespace:
@@ -361,7 +389,7 @@ class DirectProbe(Probe):
         if not callable(fn):
             raise StudentError(not_a_function_message(fname, type(fn).__name__))
 
-        (expanded, handed), kwargs = self._expand(args), copy.deepcopy(kwargs)
+        (expanded, handed, given), kwargs = self._expand(args), copy.deepcopy(kwargs)
 
         def call_and_read():  # read as numbers under the watch too: an __array__ runs code
             value = fn(*expanded, **kwargs)
@@ -400,6 +428,8 @@ class DirectProbe(Probe):
             raise ForbiddenCall(forbidden_message(used))
         for state, data in handed:
             self.notice_state_write(fname, fields_written(data, state.q, state.qdot))
+        if not handed:  # a law is run on copies (grading.copies); a function such as the IK is not
+            self.notice_argument_write(fname, arguments_written(fn, given, expanded))
         return value
 
     def get(self, name: str):
@@ -408,31 +438,42 @@ class DirectProbe(Probe):
 
 def noting_state_write(result: Result, probe: Probe) -> Result:
     """``result`` with a note where a call of the check changed the state it was handed
-    (:attr:`Probe.state_write`), its score unchanged. Every call of a check gets a copy of the
+    (:attr:`Probe.state_write`), or an array it was handed (:attr:`Probe.argument_write`), its
+    score unchanged. Every call of a check gets a copy of the
     state, so such a write changes none of the check's numbers; but the notebook's own runs hand
     the law the arm's data, and the loop stops at the first call that changes it
     (:func:`labsupport.sim.state_written`)."""
-    if probe.state_write is None:
-        return result
-    fname, changed = probe.state_write
-    note = (
-        f" Note: {fname} changed {' and '.join(changed)} of the state the check handed it; {STATE_WRITE_ADVICE}. "
-        "No points are lost here, where each call gets its own copy of the state, but your own runs, which "
-        "hand the law the arm's data, stop at the first such call."
-    )
-    return replace(result, message=result.message + note)
+    note = ""
+    if probe.state_write is not None:
+        fname, changed = probe.state_write
+        note += (
+            f" Note: {fname} changed {' and '.join(changed)} of the state the check handed it; {STATE_WRITE_ADVICE}. "
+            "No points are lost here, where each call gets its own copy of the state, but your own runs, which "
+            "hand the law the arm's data, stop at the first such call."
+        )
+    if probe.argument_write is not None:
+        fname, changed = probe.argument_write
+        note += (
+            f" Note: {fname} changed the array it was handed as {' and '.join(changed)} (an in-place operation "
+            "such as x[2] -= L1 writes into the caller's array): work on a copy, x = np.array(x, dtype=float), "
+            "or compute new arrays. No points are lost here, where each call gets its own copy, but the "
+            "notebook's cells hand it their own arrays, which then change under them: a target moved this way "
+            "sends the runs below elsewhere."
+        )
+    return replace(result, message=result.message + note) if note else result
 
 
 #: Why a law's matrix may be singular where the arm is not: the Jacobian of a point that a joint
 #: does not move (a body whose origin is on that joint's axis: link3's, on joint 3's) has a zero
-#: column; and a scratch ``MjData`` whose positions were set but whose kinematics were not
-#: computed has a zero Jacobian.
+#: column; the angular rows 3–5 have rank 2 (the pitch axes are parallel); and a scratch
+#: ``MjData`` whose positions were set but whose kinematics were not computed has a zero Jacobian.
 SINGULAR_HINT = (
     " (where the arm is not stretched out or folded, a singular Jacobian is the Jacobian of the wrong "
-    "point or of data not yet computed: take the end effector's site, mj_jacSite with 'end_effector' (a "
-    "body's origin on a joint's axis, such as link3's, does not move with that joint, so its column is "
-    "zero), and on a scratch MjData run mujoco.mj_kinematics and mujoco.mj_comPos after setting its "
-    "qpos; check J before solving)"
+    "point, of the wrong rows, or of data not yet computed: take the end effector's site, mj_jacSite with "
+    "'end_effector' (a body's origin on a joint's axis, such as link3's, does not move with that joint, so "
+    "its column is zero), and its rows 0–2, [:3] (rows 3–5 map to the angular velocity, singular on this "
+    "arm, whose two pitch axes are parallel); on a scratch MjData run mujoco.mj_kinematics and "
+    "mujoco.mj_comPos after setting its qpos; check J before solving)"
 )
 
 
@@ -444,8 +485,18 @@ JACOBIAN_ROWS_HINT = f" ({SITE_JACOBIAN_ROWS})"
 #: stub's (the lab's own scaffold writes ``pd_torque(data, q_d, Kp, Kd)``, without ``model``).
 SIGNATURE_HINT = (
     " (the checks and the runs call it with the arguments of the TODO's stub, in the stub's order, a "
-    "law's model and data first: keep the stub's def line as it was handed out)"
+    "law's model and data first: keep the stub's def line as it was handed out{line})"
 )
+
+#: The def line of each Problem TODO's stub, as the notebooks hand it out (a test holds the two
+#: alike), quoted by :data:`SIGNATURE_HINT`.
+STUB_DEF_LINES = {
+    "ik_3r": "def ik_3r(x, elbow_up=True)",
+    "pd_torque": "def pd_torque(model, data, q_d, Kp, Kd)",
+    "ct_joint_torque": "def ct_joint_torque(model, data, q_d, Kp, Kd)",
+    "ct_op_torque": "def ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd)",
+    "ct_ik_joint_torque": "def ct_ik_joint_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd)",
+}
 
 
 def _top_level_split(text: str) -> list[str]:
@@ -513,7 +564,8 @@ def raised_text(fname: str, error: str) -> str:
     elif re.search(r"\(6,|\b6\)", error) and re.search(r"broadcast|dimension|aligned|shape", error):
         hint = JACOBIAN_ROWS_HINT
     elif re.match(rf"TypeError: (?:\S+\.)?{re.escape(fname)}\(\) .*(?:positional|keyword) argument", error):
-        hint = SIGNATURE_HINT  # the call of fname itself does not fit its def line
+        line = STUB_DEF_LINES.get(fname)  # the call of fname itself does not fit its def line
+        hint = SIGNATURE_HINT.format(line=f", {line}" if line else "")
     else:
         hint = full_m_advice(error)
     return f"{fname} raised {mujoco_arguments_text(error) or error}{hint}"

@@ -46,6 +46,7 @@ from labsupport.grading.common import (
     none_here_only,
     over_the_top,
     own_gains_mistake,
+    own_reference_mistake,
     pan_turned_round,
     rng_for,
     run_student,
@@ -118,6 +119,20 @@ JDOT_HINT = (
 def reference(t):
     """The notebook's circle: position, velocity, acceleration at time ``t``."""
     return circle_3d(t, CENTER, RADIUS, NORMAL, FREQUENCY)
+
+
+#: Why a law that tracks in the notebook misses the circle a check hands it.
+NOTEBOOK_CIRCLE = (
+    "the arm followed the notebook's circle, reference(t), not the one handed to the law: use the law's "
+    "arguments x_d, ẋ_d and ẍ_d, not the notebook's reference; the checks and the grader hand it other circles"
+)
+
+
+def _followed_the_notebooks_circle(log, within: float = 1e-3) -> bool:
+    """Whether a run's end effector stayed within ``within`` [m] (RMS) of the notebook's circle
+    over the run's second half, after the transient from the circle it was started on."""
+    late = log.t >= log.t[-1] / 2
+    return rms_norm(log.ee[late] - np.array([reference(t).pos for t in log.t[late]])) < within
 
 
 def check_start(probe: Probe, seed: int) -> Result:
@@ -214,7 +229,11 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
     def formula(x_d, xd_d, xdd_d, Kp, Kd):  # the whole law, as a function of its arguments
         return law(xdd_d + Kd * (xd_d - J @ state.qdot) + Kp * (x_d - T.x) - jdq)
 
+    at_notebook = reference(state.t)
     return {
+        "own_reference": own_reference_mistake(
+            formula(at_notebook.pos, at_notebook.vel, at_notebook.acc, Kp, Kd), "x_d, ẋ_d and ẍ_d"
+        ),
         "no_jdot": Mistake(
             law(xdd_d + fb),
             "everything is right except the −J̇q̇ term, which is missing. The lab's hint "
@@ -729,6 +748,7 @@ def check_tracking(probe: Probe, seed: int) -> Result:
             notes.append(f"{label}: RMS error {err * 1e3:.3g} mm (needs < {RMS_TOL * 1e3:g} mm)")
         else:
             left = _left_the_branch(arm_model(), log, ik=student_ik) if fname == "ct_ik_joint_torque" else None
+            left = left or (NOTEBOOK_CIRCLE if _followed_the_notebooks_circle(log) else None)
             notes.append(
                 f"{label}: RMS error {show_beside(err * 1e3, RMS_TOL * 1e3)} mm, should be below {RMS_TOL * 1e3:g} mm"
                 f"{'' if left else TRACKING_HINT}" + (f" ({left})" if left else "")
