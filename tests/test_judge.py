@@ -270,6 +270,27 @@ def test_a_passed_check_whose_law_wrote_into_its_state_keeps_its_points_and_gets
     assert row["notes"] == ["c_law: passed, but law changed data.qvel of the state it was handed"], row["notes"]
 
 
+def test_a_function_that_writes_into_the_array_it_is_handed_keeps_its_points_and_gets_a_note(start, checks):
+    """An IK that works in place on its target (``x[2] -= L1``) answers right, since every call
+    gets a copy, but the notebook's own run cell hands it the notebook's target, which it then
+    moves. The sandbox sees the write, and the check's message says so, as in the notebook."""
+
+    def check_ik(probe, seed):
+        x = np.array([0.5, 0.2, 1.3])
+        q = probe.call("ik", x)
+        assert np.array_equal(x, [0.5, 0.2, 1.3]) and np.allclose(q, [0.5, 0.2, 0.3])
+        return passed("c_ik", "the IK ran")
+
+    checks.update(c_ik=check_ik)
+    in_place = "def ik(x, elbow_up=True):\n    x[2] -= 1.0\n    return x"
+    row = judge.grade(spec(c_ik=4), notebook(in_place), SEED, start)
+    assert row["status"] == "graded" and row["scores"] == {"c_ik": 4.0}, row
+    assert "Note: ik changed the array it was handed as x (an in-place operation" in row["messages"]["c_ik"], row
+    copying = "def ik(x, elbow_up=True):\n    x = x - [0, 0, 1.0]\n    return x"
+    row = judge.grade(spec(c_ik=4), notebook(copying), SEED, start)
+    assert row["scores"] == {"c_ik": 4.0} and "Note" not in row["messages"]["c_ik"], row
+
+
 SPIN = "import time\nt0 = time.process_time()\nwhile time.process_time() - t0 < {seconds}:\n    pass\n"
 
 

@@ -109,6 +109,8 @@ FIRST_POLL, POLL = 0.02, 0.25
 MAX_ANSWER = 1 << 20
 #: The longest file name a note shows [characters].
 MAX_PATH_CHARS = 80
+#: What the sandbox may name as an argument a call changed: a parameter's name, or its position.
+_PARAMETER = re.compile(r"[A-Za-z_]\w{0,39}|argument \d{1,2}")
 
 
 #: Why an answer whose fields have kinds the sandbox never writes scores nothing.
@@ -406,6 +408,9 @@ class SandboxProbe(Probe):
         changed = answer.get("state_written")  # words for a note: only what the sandbox writes is taken
         if isinstance(changed, list) and all(isinstance(f, str) and f in STATE_FIELDS for f in changed):
             self.notice_state_write(fname, changed)
+        changed = answer.get("arguments_written")  # parameter names, shown in the note: names only
+        if isinstance(changed, list) and all(isinstance(f, str) and _PARAMETER.fullmatch(f) for f in changed):
+            self.notice_argument_write(fname, changed)
         return _decode(fname, answer, call=True)
 
     def get(self, name: str):
@@ -818,7 +823,7 @@ def grade(
                 )
         for name in names:
             probe.begin_part(WHOLE, 1.0)
-            probe.state_write = None
+            probe.state_write = probe.argument_write = None
             try:
                 if probe.start_problem is not None:  # the notebook itself never finished: nothing to check
                     raise StudentError(f"not graded: {probe.start_problem}")

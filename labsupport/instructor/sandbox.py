@@ -313,7 +313,7 @@ def main() -> None:
     import numpy as np
     from IPython.core.interactiveshell import InteractiveShell
 
-    from labsupport.grading.feedback import fields_written, forbidden_use_text, where_raised
+    from labsupport.grading.feedback import arguments_written, fields_written, forbidden_use_text, where_raised
     from labsupport.grading.rules import MARKER, ForbiddenUse, call_watched, forbidden_message
     from labsupport.plants import load_model
 
@@ -338,10 +338,12 @@ def main() -> None:
     signal.signal(signal.SIGALRM, watch.on_tick)
 
     handed = []  # the state handed to the last call, as set (all states share one data), to see it changed
+    given = []  # the arrays handed to the last call, with their positions and copies, to see them changed
 
     def expand(args):
         out = []
         handed.clear()
+        given.clear()
         for a in args:
             if isinstance(a, dict) and "state" in a:
                 mujoco.mj_resetData(model, data)
@@ -352,7 +354,8 @@ def main() -> None:
                 out.extend((model, data))
                 handed[:] = [(data.qpos.copy(), data.qvel.copy())]
             elif isinstance(a, list):
-                out.append(np.asarray(a, dtype=float))
+                given.append((len(out), np.asarray(a, dtype=float)))
+                out.append(given[-1][1].copy())
             else:
                 out.append(a)
         return out
@@ -404,6 +407,8 @@ def main() -> None:
                 watch.disarm()
                 if op == "call" and handed and (changed := fields_written(data, *handed[0])):
                     payload["state_written"] = changed
+                if op == "call" and not handed and (changed := arguments_written(ns[name], given, args)):
+                    payload["arguments_written"] = changed
                 if "raised" in payload or "type" in payload:
                     payload = thread_errors.instead_of(payload)
             except CellTimeout:
