@@ -2991,3 +2991,22 @@ def test_the_angular_rows_of_the_jacobian_are_named_by_the_singular_hint(master2
     result = grade("p2_osct", ct_op_torque=angular_rows)
     assert result.score == 0 and "Singular matrix" in result.message, result
     assert "its rows 0–2, [:3] (rows 3–5 map to the angular velocity" in result.message, result
+
+
+def test_an_ik_on_another_branch_is_shown_by_the_ik_ct_check(master2, monkeypatch):
+    """A numerical IK that wanders to another branch (here over the top, elbow down and a turn
+    off, a combination no named mistake covers) gave only "the torque differs … check q_d =
+    IK(x_d)". The check now shows what the student's IK gives beside the elbow-up answer."""
+    ik = master2["ik_3r"]
+
+    def wandering(x, elbow_up=True):  # the elbow-down pose with the pan half a turn round, q2 a turn off
+        q1, q2, q3 = ik(x, not elbow_up)
+        return np.array([q1 + np.pi, -q2 + 2 * np.pi, -q3 - np.pi])
+
+    monkeypatch.setitem(master2, "ik_3r", wandering)  # the law's own IK too: it calls ik_3r
+    result = grade("p2_ikct", ik_3r=wandering, ct_ik_joint_torque=master2["ct_ik_joint_torque"])
+    assert result.score == 0 and "the torque differs from IK + joint CT" in result.message, result
+    shown = r"At this x_d your ik_3r\(x_d, elbow_up=True\) gives q = \[.*\], where the elbow-up IK"
+    assert re.search(shown, result.message), result
+    monkeypatch.setitem(master2, "ik_3r", ik)
+    assert "At this x_d" not in grade("p2_ikct", ik_3r=ik, ct_ik_joint_torque=master2["ct_ik_joint_torque"]).message

@@ -539,6 +539,22 @@ def _elsewhere(cases: list[Case], case: Case) -> tuple:
     return (other.states[0], other.x_d[0], other.xd_d[0], other.xdd_d[0], other.Kp, other.Kd)
 
 
+def _other_ik_answer(probe: Probe, case: Case) -> str:
+    """Where the student's own ``ik_3r`` puts the arm elsewhere than the elbow-up IK at the tested
+    reference point (another branch, an angle a turn off, a numerical IK that wandered), the words
+    that say so, else ``""``."""
+    x_d, q_d = case.x_d[-1], case.q_d[-1]
+    q = _own_ik_answer(probe, x_d)
+    if not isinstance(q, np.ndarray) or np.abs(q - q_d).max() <= 1e-3:
+        return ""
+    with np.printoptions(precision=3, suppress=True):
+        return (
+            f". At this x_d your ik_3r(x_d, elbow_up=True) gives q = {q}, where the elbow-up IK with angles in "
+            f"(−π, π] is {q_d}: the law drives the arm towards whatever q_d its IK gives, so make ik_3r "
+            "return that one"
+        )
+
+
 def check_ik_ct(probe: Probe, seed: int) -> Result:
     """``ct_ik_joint_torque`` against IK + joint-space computed torque at seeded states."""
     name, label, fname = "p2_ikct", "IK+JS-CT", "ct_ik_joint_torque"
@@ -567,7 +583,7 @@ def check_ik_ct(probe: Probe, seed: int) -> Result:
                     "the torque differs from IK + joint CT: check q_d = IK(x_d) (elbow up), q̇_d = J(q_d)⁻¹ ẋ_d "
                     "and q̈_d = J(q_d)⁻¹(ẍ_d − J̇(q_d, q̇_d) q̇_d), with J and J̇q̇ from a scratch MjData on which "
                     "mujoco.mj_kinematics and mujoco.mj_comPos ran after its qpos was set, and mujoco.mj_comVel "
-                    "after its qvel, at every call; " + text
+                    "after its qvel, at every call; " + text + _other_ik_answer(probe, case)
                 )
             return failed(name, f"{label}: {_where(case, 'the reference', text)}", verdict.score)
         worst = max(worst, verdict.jdot_error or 0.0)
