@@ -3010,3 +3010,40 @@ def test_an_ik_on_another_branch_is_shown_by_the_ik_ct_check(master2, monkeypatc
     assert re.search(shown, result.message), result
     monkeypatch.setitem(master2, "ik_3r", ik)
     assert "At this x_d" not in grade("p2_ikct", ik_3r=ik, ct_ik_joint_torque=master2["ct_ik_joint_torque"]).message
+
+
+def test_a_run_that_asked_for_an_astronomical_torque_is_sent_to_its_matrices(capsys):
+    """A law solving with the Jacobian's angular rows asked for torques of 1e16 N·m; the run's
+    message said "Lower the gains, clip the torque, or check the signs". Past 1e6 N·m (the arm's
+    weight takes at most 12.3 N·m to hold) it now points at a singular solve; an unstable law of sensible
+    torques keeps the old words. A law that solves with the angular rows at a pose where they
+    are exactly singular is told about the rows by the loop itself."""
+    from labsupport.grading import as_controller, attempt
+    from labsupport.plants import load_model
+    from labsupport.sim import simulate
+
+    model, data = load_model("spatial_3r")
+    q0 = np.array([0.0, 0.5, -0.5])
+
+    def near_singular(model, data, q_d, Kp, Kd):
+        return np.full(3, 8.3e16)
+
+    def wrong_sign(model, data, q_d, Kp, Kd):
+        return -Kp * (q_d - data.qpos) + Kd * data.qvel + bias_forces(data)
+
+    said = {}
+    for law in (near_singular, wrong_sign):
+        ctrl = as_controller(law, np.zeros(3), 400.0, 50.0)
+        assert attempt("PD", partial(simulate, model, data, ctrl, 2.0, q0=q0), ctrl, model) is None
+        said[law.__name__] = capsys.readouterr().out
+    assert "The law asked for torques of up to 8.3e+16 N·m: a solve with a singular" in said["near_singular"]
+    assert "its rows 0–2 ([:3]; rows 3–5 are angular" in said["near_singular"], said
+    assert "asked for torques of up to" not in said["wrong_sign"] and "diverged" in said["wrong_sign"], said
+
+    def angular_rows(model, data, q_d, Kp, Kd):
+        J = site_jacobian(model, data, SITE)[3:]
+        return mass_matrix(model, data) @ np.linalg.solve(J, Kp * (q_d - data.qpos)) + bias_forces(data)
+
+    ctrl = as_controller(angular_rows, np.zeros(3), 400.0, 50.0)
+    assert attempt("CT", partial(simulate, model, data, ctrl, 1.0, q0=q0), ctrl, model) is None
+    assert "rows of the site's Jacobian other than the ones the task needs" in capsys.readouterr().out

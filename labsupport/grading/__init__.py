@@ -52,6 +52,18 @@ from labsupport.validate import short
 BATCH_ENV = "LABSUPPORT_GRADING_BATCH"
 #: The seed of the in-notebook checks' targets, states and circles (the batch grader uses another).
 PUBLIC_SEED = 2024
+#: A torque no law of this lab asks for at a sane speed [N·m]: the 3R arm's weight takes at most
+#: 12.3 N·m to hold.
+HUGE_TORQUE = 1e6
+#: Joint speeds below which a huge torque is the law's own doing, not a run away's [rad/s].
+SANE_SPEED = 50.0
+#: Where such a torque comes from, when a run that asked for one diverged.
+HUGE_TORQUE_HINT = (
+    "The law asked for torques of up to {:.3g} N·m: a solve with a singular or nearly singular matrix "
+    "gives such numbers. Check the Jacobian: the end effector's site, its rows 0–2 ([:3]; rows 3–5 are "
+    "angular and singular on this arm), computed for the state it is used at; and check the target "
+    "is within the arm's reach."
+)
 
 
 def registry() -> dict[str, Callable]:
@@ -130,11 +142,15 @@ class StudentController:
         self.trace = Trace()  # the states of the last run, to explain a divergence
         self.before = (np.empty(0), np.empty(0))  # the state before each call, kept to see it changed
         self.watched = False  # whether a call has been watched for a forbidden use yet
+        self.largest = 0.0  # the largest torque asked for at a sane speed so far [N·m] (HUGE_TORQUE)
         self.used = None  # the forbidden function that call ran, if any (rules.call_watched)
 
     def __call__(self, model, data):
         self.trace.record(data)
-        return self.torque(model, data)
+        tau = self.torque(model, data)
+        if np.abs(data.qvel).max() < SANE_SPEED:  # a run away asks for huge torques at huge speeds anyway
+            self.largest = max(self.largest, float(np.abs(tau).max()))
+        return tau
 
     def torque(self, model, data):
         """The student's torque at ``data``, checked (nothing recorded). A law that writes into
@@ -225,6 +241,8 @@ def attempt(label: str, run: Callable, controller: StudentController | None = No
             reason += f" ({err.reason})."
         elif controller is not None and model is not None:
             reason = explain_divergence(model, controller.torque, controller.trace, err.t, law=controller.name)
+        if reason is None and controller is not None and controller.largest > HUGE_TORQUE:
+            reason = f"{err.reason}. {HUGE_TORQUE_HINT.format(controller.largest)}"
         print(
             f"{label}: the simulation diverged at t = {err.t:.3f} s: "
             + (reason or f"{err.reason}. Lower the gains, clip the torque, or check the signs of the law.")
