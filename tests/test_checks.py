@@ -3047,3 +3047,14 @@ def test_a_run_that_asked_for_an_astronomical_torque_is_sent_to_its_matrices(cap
     ctrl = as_controller(angular_rows, np.zeros(3), 400.0, 50.0)
     assert attempt("CT", partial(simulate, model, data, ctrl, 1.0, q0=q0), ctrl, model) is None
     assert "rows of the site's Jacobian other than the ones the task needs" in capsys.readouterr().out
+
+
+def test_a_value_whose_cell_stopped_before_setting_it_is_told_so():
+    """``x0 = reference(0.0)`` followed by an error left ``q0_traj`` unset although its cell ran;
+    the check said "run its cell (above) first". It now says that the cell ran and stopped
+    before setting it. A value whose cell never ran keeps the old words."""
+    ran = {"In": ["", "x0 = reference(0.0)\nq0_traj = ik_3r(x0.pos)  # raised: x0 has no .pos\n"]}
+    result = grade("p2_start", **ran)
+    assert "q0_traj is not defined: the cell that sets it ran, but stopped at an error" in result.message, result
+    result = grade("p2_start", In=["", "print(1)"])
+    assert "q0_traj is not defined: run its cell (above) first" in result.message, result

@@ -370,7 +370,8 @@ class DirectProbe(Probe):
 
     def _why_undefined(self, name: str) -> str:
         """Why ``name`` is missing, from the notebook's input history (IPython's ``In``): the last
-        cell run that defines it, if its code does not compile, says so; else run its cell."""
+        cell run that defines it, if its code does not compile, says so; a cell run that assigns
+        it (``q0_traj = ...``) must have stopped at an error before it got there; else run its cell."""
         history = self.namespace.get("In")
         for source in reversed(history if isinstance(history, list) else []):
             if isinstance(source, str) and re.search(rf"^\s*def\s+{re.escape(name)}\s*\(", source, re.M):
@@ -382,6 +383,11 @@ class DirectProbe(Probe):
                         "fix it and run that cell again"
                     )
                 break
+            if isinstance(source, str) and re.search(rf"^{re.escape(name)}\s*(?::[^=\n]*)?=(?!=)", source, re.M):
+                return (
+                    "the cell that sets it ran, but stopped at an error before it got there (see that cell's "
+                    "output): fix it and run that cell again"
+                )
         return "run its cell (above) first, or restore it if it was deleted"
 
     def call(self, fname: str, *args, **kwargs):
