@@ -3058,3 +3058,19 @@ def test_a_value_whose_cell_stopped_before_setting_it_is_told_so():
     assert "q0_traj is not defined: the cell that sets it ran, but stopped at an error" in result.message, result
     result = grade("p2_start", In=["", "print(1)"])
     assert "q0_traj is not defined: run its cell (above) first" in result.message, result
+
+
+def test_a_tracking_run_sent_away_by_an_ik_in_degrees_is_told_so(master2, monkeypatch):
+    """An IK returning degrees sends IK + joint CT's run away; the tracking check said "check the
+    signs of the feedback terms". It now asks about degrees first, showing the IK's answer."""
+    ik = master2["ik_3r"]
+
+    def in_degrees(x, elbow_up=True):
+        return np.degrees(ik(x, elbow_up))
+
+    monkeypatch.setitem(master2, "ik_3r", in_degrees)  # the law calls ik_3r
+    laws = {name: master2[name] for name in ("ik_3r", "ct_op_torque", "ct_ik_joint_torque")}
+    result = grade("p2_track", **laws)
+    assert result.score == 0.5 and "OS-CT: RMS error" in result.message, result
+    assert re.search(r"IK\+JS-CT: .*, but first: your ik_3r gives q = \[.*\] at the circle's start", result.message)
+    assert "angles beyond 3π: are they in degrees?" in result.message, result

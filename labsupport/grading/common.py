@@ -553,6 +553,10 @@ def student_controller(probe: Probe, fname: str, args, trace: Trace | None = Non
     return controller
 
 
+#: Why a run diverged when no stiff damping explains it.
+RAN_AWAY = "the arm ran away; check the signs of the feedback terms"
+
+
 def run_student(probe: Probe, fname: str, args, duration: float, q0, qdot0=None, reference=None) -> Log:
     """Simulate the 3R arm (the grader's own model and loop) under the student's controller.
 
@@ -569,8 +573,7 @@ def run_student(probe: Probe, fname: str, args, duration: float, q0, qdot0=None,
     except SimulationDiverged as err:
         reason = explain_divergence(model, student_controller(probe, fname, args), trace, err.t, law=fname)
         raise StudentError(
-            f"with {fname}, the simulation diverged at t = {err.t:.3f} s: "
-            + (reason or "the arm ran away; check the signs of the feedback terms")
+            f"with {fname}, the simulation diverged at t = {err.t:.3f} s: " + (reason or RAN_AWAY)
         ) from None
     except ValueError as err:
         raise StudentError(f"{fname}: {err}") from None

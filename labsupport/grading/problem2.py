@@ -28,6 +28,7 @@ from labsupport.grading.common import (
     GRAVITY_ONLY,
     INVERSE_MASS,
     MARGINS,
+    RAN_AWAY,
     STILL_RTOL,
     Case,
     Mistake,
@@ -751,6 +752,13 @@ def check_tracking(probe: Probe, seed: int) -> Result:
         try:
             log = run_student(probe, fname, args, TRACK_DURATION, q0, qdot0, reference=ref)
         except StudentError as err:
+            start = student_ik(ref(0.0).pos) if fname == "ct_ik_joint_torque" and RAN_AWAY in str(err) else None
+            if start is not None and np.abs(start).max() > 3 * np.pi:  # the law's own IK, in degrees
+                with np.printoptions(precision=1, suppress=True):
+                    err = StudentError(
+                        f"{err}, but first: your ik_3r gives q = {start} at the circle's start, angles beyond 3π: "
+                        "are they in degrees? MuJoCo's angles are radians (TODO 1)"
+                    )
             result = refused(name, label, err)
             notes.append(result.message)
             statuses.append(result.status)
