@@ -2055,7 +2055,7 @@ def test_an_ik_answer_in_degrees_is_questioned_where_it_is_printed(capsys):
     q = np.array([1.694, -0.902, 0.485])
     assert np.array_equal(attempt("IK", lambda: np.degrees(q), joints=3), np.degrees(q))
     said = capsys.readouterr().out
-    assert said.startswith("IK: note: the angles [ 97.0591 -51.6808  27.7885] lie beyond 3π") and "degrees?" in said
+    assert said.startswith("IK: note: [ 97.0591 -51.6808  27.7885] has angles beyond 3π") and "degrees?" in said
     attempt("IK", lambda: q + [0.0, 0.0, 2 * np.pi], joints=3)
     assert capsys.readouterr().out == ""
 
@@ -3073,4 +3073,6 @@ def test_a_tracking_run_sent_away_by_an_ik_in_degrees_is_told_so(master2, monkey
     result = grade("p2_track", **laws)
     assert result.score == 0.5 and "OS-CT: RMS error" in result.message, result
     assert re.search(r"IK\+JS-CT: .*, but first: your ik_3r gives q = \[.*\] at the circle's start", result.message)
-    assert "angles beyond 3π: are they in degrees?" in result.message, result
+    assert "at the circle's start, angles beyond 3π, where no joint angle in radians needs to be: are they in" in (
+        result.message
+    ), result

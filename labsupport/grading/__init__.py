@@ -40,6 +40,7 @@ from labsupport.grading.feedback import (
     StudentError,
     as_vector,
     cpu_limit,
+    degrees_question,
     noting_state_write,
     where_raised,
 )
@@ -212,11 +213,10 @@ def attempt(label: str, run: Callable, controller: StudentController | None = No
             value, used = run(), controller.used
         if joints is not None:
             value = as_vector(label, value, joints, "joint vector")
-            if np.abs(value).max() > 3 * np.pi:  # beyond even an angle a full turn off
+            if question := degrees_question(value):
                 print(
-                    f"{label}: note: the angles {short(value)} lie beyond 3π, where no joint angle in radians "
-                    "needs to be: are they in degrees? MuJoCo's angles are radians, so the runs below would "
-                    "aim elsewhere: return radians (no np.degrees)."
+                    f"{label}: note: {short(value)} has {question}, so the runs below would aim elsewhere: "
+                    "return radians (no np.degrees)."
                 )
         if used is not None:
             print(f"{label}: it ran, but {forbidden_message(used)[:-1]} in its check.")

@@ -187,6 +187,17 @@ class State:
     t: float = 0.0
 
 
+def degrees_question(q) -> str | None:
+    """Where joint angles ``q`` lie beyond 3π, past even an answer a full turn off, the question
+    whether they are in degrees (as words to append); ``None`` where they fit radians."""
+    if np.abs(q).max() <= 3 * np.pi:
+        return None
+    return (
+        "angles beyond 3π, where no joint angle in radians needs to be: are they in degrees? MuJoCo's "
+        "angles are radians"
+    )
+
+
 def complex_message(fname: str) -> str:
     """What to say when ``fname`` returned complex numbers (in the notebook and in the batch grader)."""
     return validate.complex_message(f"{fname} returned")

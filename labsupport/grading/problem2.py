@@ -63,6 +63,7 @@ from labsupport.grading.feedback import (
     Result,
     StudentError,
     as_vector,
+    degrees_question,
     failed,
     forbidden_reason,
     not_implemented,
@@ -753,11 +754,10 @@ def check_tracking(probe: Probe, seed: int) -> Result:
             log = run_student(probe, fname, args, TRACK_DURATION, q0, qdot0, reference=ref)
         except StudentError as err:
             start = student_ik(ref(0.0).pos) if fname == "ct_ik_joint_torque" and RAN_AWAY in str(err) else None
-            if start is not None and np.abs(start).max() > 3 * np.pi:  # the law's own IK, in degrees
+            if start is not None and (question := degrees_question(start)):  # the law's own IK, in degrees
                 with np.printoptions(precision=1, suppress=True):
                     err = StudentError(
-                        f"{err}, but first: your ik_3r gives q = {start} at the circle's start, angles beyond 3π: "
-                        "are they in degrees? MuJoCo's angles are radians (TODO 1)"
+                        f"{err}, but first: your ik_3r gives q = {start} at the circle's start, {question} (TODO 1)"
                     )
             result = refused(name, label, err)
             notes.append(result.message)
