@@ -336,6 +336,9 @@ def simulate(
                 step1(model, data)
             if k == checked:
                 before = data.qpos.copy(), data.qvel.copy(), data.time
+            if log_before and with_site:  # before the law runs: one that works in place on a view of
+                ee[k] = site_xpos  # data.site_xpos (x = data.site_xpos[s]; x -= x_d) changes it
+                ee_rot[k] = site_xmat
             try:
                 tau = controller(model, data)
             except _CONTROLLER_ERRORS as err:
@@ -363,9 +366,6 @@ def simulate(
                     ) from err
             if log_before:
                 get_state(model, data, state[k], _LOGGED_STATE)
-                if with_site:
-                    ee[k] = site_xpos
-                    ee_rot[k] = site_xmat
             if split_step:
                 step2(model, data)
             else:

@@ -55,6 +55,30 @@ def test_reference_and_error_are_logged(arm):
     np.testing.assert_allclose(log.err, log.ref - log.ee[:, :2])
 
 
+@pytest.mark.parametrize("log_after_step", [False, True])
+def test_a_law_working_in_place_on_the_site_position_leaves_the_logged_tip_alone(arm, log_after_step):
+    """``x = data.site_xpos[site, :2]; x -= x_d`` is a view of MuJoCo's data: the law reads right
+    (MuJoCo recomputes the position at the next step) but the loop logged the tip after the law
+    had run, so a right law showed an error of half a metre. The log holds the tip at each logged
+    state, to the 1e-7 m by which RK4 leaves the site a stage behind the step's end."""
+    model, data = arm
+    site = model.site("end_effector").id
+    Kp, Kd = 64.0, 16.0
+
+    def subtracting_in_place(model, data):
+        tau = os_ct_torque(model, data, site, np.array([0.5, 0.2]), np.zeros(2), np.zeros(2), Kp, Kd)
+        x = data.site_xpos[site, :2]
+        x -= (0.5, 0.2)  # the error, written into data.site_xpos
+        return tau
+
+    log = sim.simulate(
+        model, data, subtracting_in_place, 0.5, q0=[0.3, 1.2], site="end_effector", log_after_step=log_after_step
+    )
+    tips = sim.site_poses(model, log.q, site)[0]
+    np.testing.assert_allclose(log.ee, tips, atol=1e-6)
+    assert np.linalg.norm(log.ee[0, :2]) > 0.5  # the tip itself, not tip minus target
+
+
 def test_torque_limit_clips(arm):
     model, data = arm
     log = sim.simulate(model, data, constant([50.0, -50.0]), 0.01, torque_limit=[5.0, 2.0])
