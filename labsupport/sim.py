@@ -43,6 +43,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import re
 import sys
 import threading
 import warnings
@@ -431,10 +432,21 @@ def _interrupted(name: str, t: float, duration: float) -> str:
     )
 
 
+#: What a function that makes controllers, passed where its controller goes, leads to.
+MAKER_PASSED = (
+    "the function passed as the controller seems to make controllers (its parameters are settings, such "
+    "as gains or an offset) rather than be one: call it first and pass what it returns, as in "
+    "simulate(model, data, make(...), duration)"
+)
+
+
 def _other_shape_hint(err: Exception) -> str:
     """Why a controller may treat MuJoCo's model or data as something else: a law of the analytic
-    single joint (Task 1), which takes a ``SingleJoint``, or a ``torque(t, state)`` function."""
+    single joint (Task 1), which takes a ``SingleJoint``, or a ``torque(t, state)`` function; or
+    the controller is a function that makes controllers, whose settings got ``(model, data)``."""
     text = str(err)
+    if re.search(r"got <mujoco\._structs\.Mj(Model|Data) object|non-iterable mujoco\._structs\.Mj", text):
+        return f". MuJoCo's model or data reached a parameter that expected something else: {MAKER_PASSED}"
     missing = getattr(err, "name", None)
     if isinstance(err, AttributeError) and "MjModel' object has no attribute" in text and _is_data_field(missing):
         return (
@@ -638,6 +650,8 @@ def _as_torque(tau, nu: int) -> np.ndarray:
     """The controller's return value as a ``(nu,)`` float array, or a clear error."""
     if tau is None:
         raise ValueError(f"the controller returned None; it must return a torque of shape ({nu},)")
+    if callable(tau):
+        raise ValueError(f"the controller returned a function, not a torque of shape ({nu},): {MAKER_PASSED}")
     validate.real("the controller returned", tau)
     if validate.is_text(tau):  # NumPy would read "1" as 1 N·m
         raise ValueError(

@@ -964,3 +964,31 @@ def test_an_argument_left_out_of_a_law_is_not_blamed_on_a_reference(arm):
         r"whichever was left out: compare the call with the law's def line .* also counts",
     ):
         sim.simulate(model, data, no_site, 0.1, q0=[0.2, 0.9])
+
+
+def test_a_function_that_makes_controllers_passed_as_one_is_told_to_be_called():
+    """Tasks 2 and 3 make their controllers with a function (``os_ct(offset=0.0)``); one passed
+    uncalled ended in "returned <function ...>, not numbers", "offset must be a single real number,
+    got <MjModel ...>" or "cannot unpack non-iterable MjModel", none of which says what happened."""
+    from labsupport import validate
+
+    model, data = load_model("single_joint")
+
+    def with_model(ctrl_model, Ki=1.0):  # simulate's (model, data) fill both: it returns a controller
+        return lambda model, data: np.array([Ki])
+
+    def with_offset(offset=0.0, law=None):
+        validate.number("offset", offset)
+        return with_model(None)
+
+    def with_gains(gains=(1.0, 2.0), law=None):
+        Kp, Kd = gains
+        return with_model(None)
+
+    for maker in (with_model, with_offset, with_gains):
+        with pytest.raises((ValueError, TypeError)) as err:
+            sim.simulate(model, data, maker, 0.01, q0=[0.0])
+        assert sim.MAKER_PASSED in str(err.value), (maker.__name__, str(err.value))
+    with pytest.raises(ValueError) as err:
+        sim.simulate(model, data, lambda model, data: "1.0", 0.01, q0=[0.0])
+    assert sim.MAKER_PASSED not in str(err.value)
