@@ -143,8 +143,8 @@ def _gain_matrix_hint(value) -> str:
         return ""
     return (
         "; in a control law this is the acceleration, which a gain given as a matrix makes a "
-        "matrix too: pass Kp and Kd as numbers (or one number per joint or coordinate); so does a "
-        "Reference passed whole as the desired position: unpack it, as in *ref.at(t)"
+        "matrix too: pass Kp and Kd as numbers (or one number per joint or coordinate); so does "
+        f"{validate.REFERENCE_WHOLE}"
     )
 
 

@@ -162,7 +162,8 @@ class SingleJoint:
             validate.real(f"the torque function (at t = {t:.4f} s) returned", tau)
             tau_arr = np.asarray(tau, dtype=float)
             if tau_arr.size != 1:
-                raise _BadTorque(f"tau must be a scalar, got shape {tau_arr.shape} at t = {t:.4f} s")
+                whole = f"; three numbers: {validate.REFERENCE_WHOLE}" if tau_arr.size == 3 else ""
+                raise _BadTorque(f"tau must be a scalar, got shape {tau_arr.shape} at t = {t:.4f} s{whole}")
             tau = float(tau_arr.reshape(()))
             if not np.isfinite(tau):
                 raise _BadTorque(f"tau is {tau} (not finite) at t = {t:.4f} s, state = {x}. {NOT_A_NUMBER_ADVICE}")

@@ -447,6 +447,8 @@ def _other_shape_hint(err: Exception) -> str:
     text = str(err)
     if re.search(r"got <mujoco\._structs\.Mj(Model|Data) object|non-iterable mujoco\._structs\.Mj", text):
         return f". MuJoCo's model or data reached a parameter that expected something else: {MAKER_PASSED}"
+    if isinstance(err, ValueError) and "setting an array element with a sequence" in text:
+        return f". Several numbers went where one goes (tau[0] = ...): is it {validate.REFERENCE_WHOLE}?"
     missing = getattr(err, "name", None)
     if isinstance(err, AttributeError) and "MjModel' object has no attribute" in text and _is_data_field(missing):
         return (
@@ -669,7 +671,8 @@ def _as_torque(tau, nu: int) -> np.ndarray:
         )
     tau = values
     if tau.size != nu:
-        raise ValueError(f"the controller returned a torque of shape {tau.shape}, expected ({nu},)")
+        whole = f"; three numbers per joint: {validate.REFERENCE_WHOLE}" if tau.size == 3 * nu else ""
+        raise ValueError(f"the controller returned a torque of shape {tau.shape}, expected ({nu},){whole}")
     return tau.reshape(nu)
 
 

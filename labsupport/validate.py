@@ -203,6 +203,10 @@ def is_boolean(value) -> bool:
 #: Why a boolean is not a number, for the messages that refuse one.
 BOOLEAN_NOTE = "True and False are not numbers here (a comparison such as q > 0 gives them)"
 
+#: Why a law's torque may hold three numbers per joint: a ``Reference`` (position, velocity,
+#: acceleration) was passed whole where the law takes one of its parts.
+REFERENCE_WHOLE = "a Reference passed whole as the desired position: unpack it, as in *ref.at(t)"
+
 
 def not_text(name: str, value) -> None:
     """``ValueError`` for text, or for ``True``/``False`` values, where numbers belong."""

@@ -992,3 +992,31 @@ def test_a_function_that_makes_controllers_passed_as_one_is_told_to_be_called():
     with pytest.raises(ValueError) as err:
         sim.simulate(model, data, lambda model, data: "1.0", 0.01, q0=[0.0])
     assert sim.MAKER_PASSED not in str(err.value)
+
+
+def test_a_reference_passed_whole_into_a_law_of_the_right_arity_is_named():
+    """``law(..., sinusoid(t), ...)`` with a whole Reference where the law takes its position has
+    the right number of arguments, so no argument is missing, but three numbers come out where one
+    goes: the analytic plant said "tau must be a scalar", the loop "shape (1, 3)", and a
+    preallocated torque "setting an array element with a sequence", none naming the Reference."""
+    from labsupport.plants import SingleJoint
+    from labsupport.trajectories import sinusoid
+
+    def pd(theta_d, theta):  # called with sinusoid(t) whole
+        return 2.0 * (np.asarray(theta_d) - theta)
+
+    with pytest.raises(ValueError) as err:
+        SingleJoint().simulate(lambda t, x: pd(sinusoid(t), x[0]), 0.1)
+    assert validate.REFERENCE_WHOLE in str(err.value), str(err.value)
+
+    model, data = load_model("single_joint")
+    tau = np.zeros(1)
+
+    def into_preallocated(model, data):
+        tau[0] = pd(sinusoid(data.time), data.qpos[0])
+        return tau
+
+    for law in (lambda model, data: np.array([pd(sinusoid(data.time), data.qpos[0])]), into_preallocated):
+        with pytest.raises(ValueError) as err:
+            sim.simulate(model, data, law, 0.01, q0=[0.0])
+        assert validate.REFERENCE_WHOLE in str(err.value), str(err.value)
