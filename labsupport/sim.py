@@ -525,7 +525,12 @@ def _controller_failed(err: Exception, model: mujoco.MjModel, data: mujoco.MjDat
             "mj_forward (on a scratch MjData: mj_kinematics, then mj_comPos)"
         )
     message += dynamics.full_m_advice(message) + _other_shape_hint(err)
-    if "shape" in message or isinstance(err, IndexError):
+    if isinstance(err, IndexError) and "only integers, slices" in str(err):
+        message += (
+            ". An array was indexed with something other than a whole number, such as a site's name: "
+            "data.site_xpos[i] takes the site's id, model.site(name).id, and data.site(name).xpos takes its name"
+        )
+    elif "shape" in message or isinstance(err, IndexError):
         message += (
             f". The model's state has nq = {model.nq}, nv = {model.nv} and nu = {model.nu}: check that "
             "the references and gains given to the law have these sizes"

@@ -1020,3 +1020,17 @@ def test_a_reference_passed_whole_into_a_law_of_the_right_arity_is_named():
         with pytest.raises(ValueError) as err:
             sim.simulate(model, data, law, 0.01, q0=[0.0])
         assert validate.REFERENCE_WHOLE in str(err.value), str(err.value)
+
+
+def test_a_site_indexed_by_its_name_is_told_the_id(arm):
+    """``data.site_xpos[site]`` with the site's name raised IndexError, which the loop followed with
+    "check that the references and gains given to the law have these sizes": no size was wrong."""
+    model, data = arm
+
+    def by_name(model, data, site="end_effector"):
+        return 10.0 * (np.array([0.5, 0.2]) - data.site_xpos[site][:2])
+
+    with pytest.raises(ValueError) as err:
+        sim.simulate(model, data, by_name, 0.01, q0=[0.3, 1.2])
+    assert "data.site_xpos[i] takes the site's id, model.site(name).id" in str(err.value), str(err.value)
+    assert "have these sizes" not in str(err.value)
