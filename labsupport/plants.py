@@ -26,7 +26,7 @@ from labsupport.sim import (
     RUNAWAY_SPEED,
     Log,
     SimulationDiverged,
-    fewer_arguments_hint,
+    law_call_hint,
     raised_by_the_call,
     runaway_reason,
 )
@@ -53,7 +53,7 @@ def _torque_error_hint(err: Exception) -> str:
     Reference or Gains whole where it takes their parts."""
     if raised_by_the_call(err) or isinstance(err, AttributeError):
         return "; it is called as torque(t, state) with state = (theta, theta_dot), an array"
-    return fewer_arguments_hint(err)
+    return law_call_hint(err)
 
 
 @dataclass(frozen=True)

@@ -474,7 +474,7 @@ def _other_shape_hint(err: Exception) -> str:
                 "a function that makes a controller is called first, and what it returns is passed"
             )
         return ""
-    return fewer_arguments_hint(err)
+    return law_call_hint(err)
 
 
 def raised_by_the_call(err: Exception) -> bool:
@@ -483,17 +483,27 @@ def raised_by_the_call(err: Exception) -> bool:
     return err.__traceback__ is None or err.__traceback__.tb_next is None
 
 
-def fewer_arguments_hint(err: Exception) -> str:
+def law_call_hint(err: Exception) -> str:
     """For a law that a controller called with fewer arguments than it takes, the two likely
     causes: an argument left out (Python then names the *last* ones as missing, whichever was
     left out), or a :class:`~labsupport.trajectories.Reference` (or ``Gains``) passed whole where
-    the law takes its parts, which then fill the places of the arguments after it."""
+    the law takes its parts, which then fill the places of the arguments after it. Also for a law
+    called with its arguments in another order, where one reaches a place that takes another."""
     if isinstance(err, TypeError) and "missing" in str(err) and "argument" in str(err):
         return (
             "; a law inside it was called with fewer arguments than it takes. Python names the last "
             "ones as missing, whichever was left out: compare the call with the law's def line "
             "(help(law) shows it). A Reference or Gains passed whole also counts as one argument: "
             "unpack it with *, as in *reference(t)"
+        )
+    text = str(err)
+    if isinstance(err, TypeError) and (
+        re.search(r"unsupported operand type\(s\).*'(SingleJoint|Gains|MjModel|MjData|function)'", text)
+        or re.search(r"object of type '(float|int)' has no len\(\)", text)
+    ):
+        return (
+            "; an argument reached a place that takes another (an arm, gains or a number where something "
+            "else goes): compare the call with the law's def line, argument by argument (help(law) shows it)"
         )
     return ""
 

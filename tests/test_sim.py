@@ -1034,3 +1034,30 @@ def test_a_site_indexed_by_its_name_is_told_the_id(arm):
         sim.simulate(model, data, by_name, 0.01, q0=[0.3, 1.2])
     assert "data.site_xpos[i] takes the site's id, model.site(name).id" in str(err.value), str(err.value)
     assert "have these sizes" not in str(err.value)
+
+
+def test_a_law_called_with_its_arguments_in_another_order_is_told_to_compare_the_def_line(arm):
+    """Task 1's ``pd_gravity_torque(theta, theta_dot, theta_d, thetadot_d, arm, Kp, Kd)`` called with
+    the arm before the gains, and Task 3's law with the gains before the reference, ended in
+    "unsupported operand type(s) for *: 'SingleJoint' and 'float'" and "object of type 'float' has
+    no len()", with no hint."""
+    from labsupport.plants import SingleJoint
+
+    def pd_gravity_torque(theta, theta_dot, theta_d, theta_dot_d, Kp, Kd, arm):  # the Try it's law
+        return Kp * (theta_d - theta) + Kd * (theta_dot_d - theta_dot) + arm.m * arm.g * arm.r * np.cos(theta)
+
+    vertical = SingleJoint(g=9.81)
+    with pytest.raises(ValueError) as err:
+        vertical.simulate(lambda t, x: pd_gravity_torque(x[0], x[1], 0.5, 0.0, vertical, 4.0, 2.0), 0.1)
+    assert "compare the call with the law's def line, argument by argument" in str(err.value), str(err.value)
+
+    model, data = arm
+    site = model.site("end_effector").id
+    x_d = np.array([0.5, 0.2])
+
+    def other_order(model, data):
+        return os_ct_torque(model, data, site, 64.0, 16.0, x_d, np.zeros(2), np.zeros(2))
+
+    with pytest.raises(TypeError) as err:
+        sim.simulate(model, data, other_order, 0.01, q0=[0.3, 1.2])
+    assert "compare the call with the law's def line, argument by argument" in str(err.value), str(err.value)
