@@ -204,6 +204,11 @@ SITE_JACOBIAN_ROWS = (
     'site_jacobian(model, data, "end_effector") has 6 rows, translation then rotation: the position '
     "task takes rows 0–2, [:3], and so does site_jdot_qdot"
 )
+#: Why a site Jacobian may be singular where the arm is not: its rotation rows were taken.
+ANGULAR_ROWS = (
+    "the position task takes the site Jacobian's rows 0–2, [:3]; rows 3–5, the rotation's, can be "
+    "singular everywhere (on the 3R arm, whose two pitch axes are parallel)"
+)
 
 
 def site_jacobian(

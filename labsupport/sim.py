@@ -529,9 +529,8 @@ def _controller_failed(err: Exception, model: mujoco.MjModel, data: mujoco.MjDat
     elif isinstance(err, np.linalg.LinAlgError):
         message += (
             ". A matrix the law solves with or inverts is singular here: the Jacobian when the arm is stretched "
-            "out or folded (keep the target inside the workspace, away from its edge), rows of the site's "
-            "Jacobian other than the ones the task needs (rows 0–2 are the position's; the angular rows 3–5 can "
-            "be singular everywhere, as on the 3R arm), or a matrix of data whose state was set without "
+            "out or folded (keep the target inside the workspace, away from its edge), the wrong rows of the "
+            f"site's Jacobian ({dynamics.ANGULAR_ROWS}), or a matrix of data whose state was set without "
             "mj_forward (on a scratch MjData: mj_kinematics, then mj_comPos)"
         )
     message += dynamics.full_m_advice(message) + _other_shape_hint(err)

@@ -30,6 +30,7 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 
+from labsupport.dynamics import ANGULAR_ROWS
 from labsupport.grading.feedback import (
     CALL_CPU_SECONDS,
     CHECK_CPU_SECONDS,
@@ -60,10 +61,9 @@ HUGE_TORQUE = 1e6
 SANE_SPEED = 50.0
 #: Where such a torque comes from, when a run that asked for one diverged.
 HUGE_TORQUE_HINT = (
-    "The law asked for torques of up to {:.3g} N·m: a solve with a singular or nearly singular matrix "
-    "gives such numbers. Check the Jacobian: the end effector's site, its rows 0–2 ([:3]; rows 3–5 are "
-    "angular and singular on this arm), computed for the state it is used at; and check the target "
-    "is within the arm's reach."
+    "a solve with a singular or nearly singular matrix gives such numbers. Check the Jacobian, the end "
+    f"effector's site's, computed for the state it is used at ({ANGULAR_ROWS}); and check the target is "
+    "within the arm's reach."
 )
 
 
@@ -242,7 +242,8 @@ def attempt(label: str, run: Callable, controller: StudentController | None = No
         elif controller is not None and model is not None:
             reason = explain_divergence(model, controller.torque, controller.trace, err.t, law=controller.name)
         if reason is None and controller is not None and controller.largest > HUGE_TORQUE:
-            reason = f"{err.reason}. {HUGE_TORQUE_HINT.format(controller.largest)}"
+            largest = f"The law asked for torques of up to {controller.largest:.3g} N·m"
+            reason = f"{err.reason}. {largest}: {HUGE_TORQUE_HINT}"
         print(
             f"{label}: the simulation diverged at t = {err.t:.3f} s: "
             + (reason or f"{err.reason}. Lower the gains, clip the torque, or check the signs of the law.")

@@ -33,7 +33,7 @@ import mujoco
 import numpy as np
 
 from labsupport import validate
-from labsupport.dynamics import SITE_JACOBIAN_ROWS, full_m_advice
+from labsupport.dynamics import ANGULAR_ROWS, SITE_JACOBIAN_ROWS, full_m_advice
 from labsupport.grading.rules import ForbiddenUse, call_watched, forbidden_message, is_forbidden_message
 from labsupport.sim import STATE_WRITE_ADVICE, state_changes
 
@@ -488,8 +488,7 @@ SINGULAR_HINT = (
     " (where the arm is not stretched out or folded, a singular Jacobian is the Jacobian of the wrong "
     "point, of the wrong rows, or of data not yet computed: take the end effector's site, mj_jacSite with "
     "'end_effector' (a body's origin on a joint's axis, such as link3's, does not move with that joint, so "
-    "its column is zero), and its rows 0–2, [:3] (rows 3–5 map to the angular velocity, singular on this "
-    "arm, whose two pitch axes are parallel); on a scratch MjData run mujoco.mj_kinematics and "
+    f"its column is zero); {ANGULAR_ROWS}; on a scratch MjData run mujoco.mj_kinematics and "
     "mujoco.mj_comPos after setting its qpos; check J before solving)"
 )
 
