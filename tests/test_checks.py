@@ -2936,7 +2936,7 @@ def test_an_ik_that_writes_into_its_target_keeps_its_points_and_is_told_so(maste
 
     def grade(name, **functions):  # with the notes check() adds
         probe = DirectProbe(functions)
-        return feedback.noting_state_write(registry()[name](probe, PUBLIC_SEED), probe)
+        return feedback.noting_writes(registry()[name](probe, PUBLIC_SEED), probe)
 
     def ik_in_place(x, elbow_up=True):
         x = np.asarray(x, dtype=float)  # the caller's array itself

@@ -42,7 +42,7 @@ from labsupport.grading.feedback import (
     as_vector,
     cpu_limit,
     degrees_question,
-    noting_state_write,
+    noting_writes,
     where_raised,
 )
 from labsupport.grading.rules import ForbiddenUse, call_watched, forbidden_message
@@ -97,7 +97,7 @@ def check(name: str, namespace: dict) -> Result | None:
     if name not in checks:
         raise ValueError(f"no check named {name!r}; the checks are {sorted(checks)}")
     probe = DirectProbe(namespace)
-    result = noting_state_write(checks[name](probe, PUBLIC_SEED), probe)
+    result = noting_writes(checks[name](probe, PUBLIC_SEED), probe)
     print(result)
     note = cpu_note(*probe.busiest, stopped=probe.stopped)
     if note:

@@ -281,7 +281,7 @@ class Probe:
 
     Attributes:
         state_write: the first call since it was last set to None that changed the state it was
-            handed, as ``(function name, ["data.qpos", ...])``, else None (see :func:`noting_state_write`).
+            handed, as ``(function name, ["data.qpos", ...])``, else None (see :func:`noting_writes`).
     """
 
     state_write: tuple[str, list[str]] | None = None
@@ -453,7 +453,7 @@ class DirectProbe(Probe):
         return _plain(self._lookup(name), f"{name} is")
 
 
-def noting_state_write(result: Result, probe: Probe) -> Result:
+def noting_writes(result: Result, probe: Probe) -> Result:
     """``result`` with a note where a call of the check changed the state it was handed
     (:attr:`Probe.state_write`), or an array it was handed (:attr:`Probe.argument_write`), its
     score unchanged. Every call of a check gets a copy of the

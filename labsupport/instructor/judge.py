@@ -54,7 +54,7 @@ from labsupport.grading.feedback import (
     complex_message,
     failed,
     not_a_function_message,
-    noting_state_write,
+    noting_writes,
     raised_text,
 )
 from labsupport.instructor import isolation
@@ -834,7 +834,7 @@ def grade(
                 raise
             except Exception as err:  # a bug in a check must not lose the row
                 result = Result(name, 0.0, "error", f"the grader could not run this check: {type(err).__name__}: {err}")
-            result = noting_state_write(result, probe)
+            result = noting_writes(result, probe)
             if probe.state_write is not None:
                 wrote_state[name] = probe.state_write
             scores[name] = round(result.score * points[name], 4)
