@@ -42,8 +42,17 @@ LAB_M, LAB_m, LAB_r, LAB_b = 0.5, 1.0, 0.1, 0.1
 MAX_EVALUATIONS = 300_000
 
 
-class _BadTorque(Exception):
-    pass
+#: What to do about a torque function that wrote into the state it is handed.
+STATE_ONLY_READ = (
+    "a law only reads the state, as on the MuJoCo arm. An in-place operation on it writes into it, as "
+    "e = state followed by e -= theta_d does: compute with new arrays, e = theta_d - state[0], or take a "
+    "copy first, state = state.copy()"
+)
+
+
+class _RunEnded(Exception):
+    """Carries the error a run ends with (its only argument) out of SciPy's solver, so that
+    :meth:`SingleJoint.simulate` raises it itself, not 13 frames deep inside the solver."""
 
 
 def _torque_error_hint(err: Exception) -> str:
@@ -149,24 +158,44 @@ class SingleJoint:
         validate.function("torque", torque, "a function torque(t, state) -> float, state = (theta, theta_dot)")
 
         def checked_torque(t, x):
+            state = x.copy()  # the solver's own state stays its own,
+            state.flags.writeable = False  # and a law only reads it, as on the MuJoCo arm
             try:
-                tau = torque(t, x.copy())  # the solver's own state stays its own
+                tau = torque(t, state)
             except (TypeError, AttributeError) as err:
-                raise _BadTorque(
-                    f"the torque function raised {type(err).__name__} at t = {t:.4f} s: {err}{_torque_error_hint(err)}"
+                raise _RunEnded(
+                    ValueError(
+                        f"the torque function raised {type(err).__name__} at t = {t:.4f} s: {err}"
+                        f"{_torque_error_hint(err)}"
+                    )
+                ) from err
+            except ValueError as err:
+                if "read-only" not in str(err):
+                    raise
+                raise _RunEnded(
+                    ValueError(
+                        f"the torque function wrote into the state it is handed at t = {t:.4f} s; {STATE_ONLY_READ}"
+                    )
                 ) from err
             if tau is None:
-                raise _BadTorque(f"the torque function returned None at t = {t:.4f} s")
+                raise _RunEnded(ValueError(f"the torque function returned None at t = {t:.4f} s"))
             if isinstance(tau, (str, bytes)):  # NumPy would read "1" as 1 N·m
-                raise _BadTorque(f"the torque function returned the text {tau!r} at t = {t:.4f} s, not a number")
-            validate.real(f"the torque function (at t = {t:.4f} s) returned", tau)
+                raise _RunEnded(
+                    ValueError(f"the torque function returned the text {tau!r} at t = {t:.4f} s, not a number")
+                )
+            try:
+                validate.real(f"the torque function (at t = {t:.4f} s) returned", tau)
+            except ValueError as err:
+                raise _RunEnded(err) from None
             tau_arr = np.asarray(tau, dtype=float)
             if tau_arr.size != 1:
                 whole = f"; three numbers: {validate.REFERENCE_WHOLE}" if tau_arr.size == 3 else ""
-                raise _BadTorque(f"tau must be a scalar, got shape {tau_arr.shape} at t = {t:.4f} s{whole}")
+                raise _RunEnded(ValueError(f"tau must be a scalar, got shape {tau_arr.shape} at t = {t:.4f} s{whole}"))
             tau = float(tau_arr.reshape(()))
             if not np.isfinite(tau):
-                raise _BadTorque(f"tau is {tau} (not finite) at t = {t:.4f} s, state = {x}. {NOT_A_NUMBER_ADVICE}")
+                raise _RunEnded(
+                    ValueError(f"tau is {tau} (not finite) at t = {t:.4f} s, state = {x}. {NOT_A_NUMBER_ADVICE}")
+                )
             return tau
 
         evaluations = 0
@@ -175,10 +204,12 @@ class SingleJoint:
             nonlocal evaluations
             evaluations += 1
             if evaluations > MAX_EVALUATIONS:
-                raise RuntimeError(
-                    f"RK45 had evaluated the dynamics {MAX_EVALUATIONS:,} times and reached only t = {t:.4g} s "
-                    f"of {duration:g} s: the closed loop is too stiff for it, with gains far beyond this arm's "
-                    f"scale (M = {self.M:g} kg·m²). Lower the gains, or check the law for a sign error."
+                raise _RunEnded(
+                    RuntimeError(
+                        f"RK45 had evaluated the dynamics {MAX_EVALUATIONS:,} times and reached only t = {t:.4g} s "
+                        f"of {duration:g} s: the closed loop is too stiff for it, with gains far beyond this "
+                        f"arm's scale (M = {self.M:g} kg·m²). Lower the gains, or check the law for a sign error."
+                    )
                 )
             return (x[1], self.acceleration(x[0], x[1], checked_torque(t, x)))
 
@@ -191,14 +222,14 @@ class SingleJoint:
             sol = solve_ivp(
                 rhs, (0.0, duration), state0, t_eval=t_eval, method="RK45", rtol=rtol, atol=atol, events=runaway
             )
-        except _BadTorque as err:
-            raise ValueError(str(err)) from None
-        if sol.status == 1:  # stopped by the runaway event
-            (t_bad,), (x_bad,) = sol.t_events[0], sol.y_events[0]
-            raise SimulationDiverged(float(t_bad), x_bad[:1], x_bad[1:], runaway_reason(RUNAWAY_SPEED))
-        if not sol.success:
-            raise RuntimeError(f"the integration stopped early: {sol.message}")
-        tau = np.array([[checked_torque(t, x)] for t, x in zip(sol.t, sol.y.T, strict=True)]).reshape(-1, 1)
+            if sol.status == 1:  # stopped by the runaway event
+                (t_bad,), (x_bad,) = sol.t_events[0], sol.y_events[0]
+                raise SimulationDiverged(float(t_bad), x_bad[:1], x_bad[1:], runaway_reason(RUNAWAY_SPEED))
+            if not sol.success:
+                raise RuntimeError(f"the integration stopped early: {sol.message}")
+            tau = np.array([[checked_torque(t, x)] for t, x in zip(sol.t, sol.y.T, strict=True)]).reshape(-1, 1)
+        except _RunEnded as ended:
+            raise ended.args[0] from None
         n = len(sol.t)
         return Log(
             t=sol.t,

@@ -6,6 +6,7 @@ too large for a float, nested lists of unequal lengths, a wrong shape, or a valu
 kind: the helpers' own checks had missed them.
 """
 
+import traceback
 import warnings
 
 import numpy as np
@@ -256,17 +257,29 @@ def test_a_torque_function_in_the_ts_form_given_to_simulate_is_told_the_form_sim
         sim.simulate(*arm, lambda t, x: np.array([x[0], x[1]]), 0.01)
 
 
-def test_a_torque_function_that_writes_into_its_state_leaves_the_run_as_it_was():
-    """The state array the solver integrates is not the student's: a function that adds 0.01 to
-    the angle it is handed at every call moved a level joint at rest (no torque, no gravity) by
-    0.07 rad in 0.1 s."""
+def test_a_torque_function_that_writes_into_its_state_is_stopped_as_on_the_mujoco_arm():
+    """The solver hands a copy, so a function that added 0.01 to the angle it is handed at every
+    call went unnoticed on the analytic arm (``e = state; e -= ...`` too), while the MuJoCo loop
+    refuses the same write, which there moves the arm. Now both refuse it, from ``simulate``
+    itself, not from inside SciPy's solver."""
 
     def writes(t, x):
         x[0] += 0.01
         return 0.0
 
-    log = SingleJoint().simulate(writes, 0.1, state0=(0.5, 0.0))
-    np.testing.assert_array_equal(log.q, 0.5)
+    with pytest.raises(
+        ValueError, match=r"wrote into the state it is handed at t = 0.0000 s; .*state.copy\(\)"
+    ) as caught:
+        SingleJoint().simulate(writes, 0.1, state0=(0.5, 0.0))
+    assert [frame.name for frame in traceback.extract_tb(caught.tb)][-1] == "simulate"
+
+    def copies(t, state):
+        error = state.copy()
+        error -= (np.pi / 2, 0.0)
+        return -5.72 * error[0] - 1.9 * error[1]
+
+    log = SingleJoint().simulate(copies, 10.0)
+    assert log.q[-1, 0] == pytest.approx(np.pi / 2, abs=1e-3)  # the lab's gains settle it
 
 
 def test_a_non_square_solve_in_a_problem_law_gets_the_jacobian_rows_hint():
