@@ -443,8 +443,14 @@ MAKER_PASSED = (
 def _other_shape_hint(err: Exception) -> str:
     """Why a controller may treat MuJoCo's model or data as something else: a law of the analytic
     single joint (Task 1), which takes a ``SingleJoint``, or a ``torque(t, state)`` function; or
-    the controller is a function that makes controllers, whose settings got ``(model, data)``."""
+    the controller is a function that makes controllers, whose settings got ``(model, data)``; or a
+    reference function read as a sampled reference."""
     text = str(err)
+    if isinstance(err, AttributeError) and re.search(r"'function' object has no attribute '(at|pos|vel|acc)'", text):
+        return (
+            ". A function of time was used as a sampled reference: sample it first, "
+            "reference = trajectories.sample(f, dt, duration), then reference.at(t); or call it, f(t)"
+        )
     if re.search(r"got <mujoco\._structs\.Mj(Model|Data) object|non-iterable mujoco\._structs\.Mj", text):
         return f". MuJoCo's model or data reached a parameter that expected something else: {MAKER_PASSED}"
     if isinstance(err, ValueError) and "setting an array element with a sequence" in text:
@@ -488,7 +494,8 @@ def law_call_hint(err: Exception) -> str:
     causes: an argument left out (Python then names the *last* ones as missing, whichever was
     left out), or a :class:`~labsupport.trajectories.Reference` (or ``Gains``) passed whole where
     the law takes its parts, which then fill the places of the arguments after it. Also for a law
-    called with its arguments in another order, where one reaches a place that takes another."""
+    called with its arguments in another order, where one reaches a place that takes another, and
+    for a gain or reference given as text or as a list, which do no arithmetic."""
     if isinstance(err, TypeError) and "missing" in str(err) and "argument" in str(err):
         return (
             "; a law inside it was called with fewer arguments than it takes. Python names the last "
@@ -504,6 +511,14 @@ def law_call_hint(err: Exception) -> str:
         return (
             "; an argument reached a place that takes another (an arm, gains or a number where something "
             "else goes): compare the call with the law's def line, argument by argument (help(law) shows it)"
+        )
+    if isinstance(err, TypeError) and (
+        "can't multiply sequence by non-int" in text
+        or re.search(r"dtype\('<U\d*'\)|operand type\(s\) for .*'(str|list|tuple)'", text)
+    ):
+        return (
+            '; a number reached the law as text ("4.2") or as a list ([1.0, 2.0]), neither of which does '
+            "arithmetic: write numbers without quotes, and vectors as np.array([...])"
         )
     return ""
 

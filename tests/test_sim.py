@@ -1061,3 +1061,55 @@ def test_a_law_called_with_its_arguments_in_another_order_is_told_to_compare_the
     with pytest.raises(TypeError) as err:
         sim.simulate(model, data, other_order, 0.01, q0=[0.3, 1.2])
     assert "compare the call with the law's def line, argument by argument" in str(err.value), str(err.value)
+
+
+def test_a_gain_given_as_text_or_a_list_is_named_as_such(arm):
+    """``Kp = "4.2"`` (read from a widget or a file) and ``Kp = [64.0, 64.0]`` ended in NumPy's
+    "can't multiply sequence by non-int" or "ufunc 'multiply' did not contain a loop", with no
+    word of what to change."""
+    from labsupport.controllers.single_joint import pd_torque
+    from labsupport.plants import SingleJoint
+
+    for Kp in ("4.2", [4.2]):
+        with pytest.raises(ValueError) as err:
+            SingleJoint().simulate(lambda t, x, Kp=Kp: pd_torque(x[0], x[1], 1.0, 0.0, Kp, 1.0), 0.1)
+        assert 'a number reached the law as text ("4.2") or as a list' in str(err.value), str(err.value)
+
+    model, data = arm
+    site = model.site("end_effector").id
+    x_d = np.array([0.5, 0.2])
+
+    def law(model, data):
+        return os_ct_torque(model, data, site, x_d, np.zeros(2), np.zeros(2), "64", 16.0)
+
+    with pytest.raises(TypeError) as err:
+        sim.simulate(model, data, law, 0.01, q0=[0.3, 1.2])
+    assert "write numbers without quotes, and vectors as np.array([...])" in str(err.value), str(err.value)
+    # the same gains as numbers run
+    sim.simulate(
+        model, data, lambda m, d: os_ct_torque(m, d, site, x_d, 0 * x_d, 0 * x_d, 64.0, 16.0), 0.01, q0=[0.3, 1.2]
+    )
+
+
+def test_a_function_of_time_read_as_a_sampled_reference_is_told_to_sample_it(arm):
+    """Task 4's ``tracking_run(circle, ...)``, handed the circle function instead of its sampled
+    reference, ended in "'function' object has no attribute 'at'" with no pointer to
+    ``trajectories.sample``."""
+    from labsupport import trajectories
+
+    model, data = arm
+    site = model.site("end_effector").id
+
+    def circle(t):
+        return trajectories.circle_2d(t, center=(0.5, 0.2), radius=0.1, period=6.0)
+
+    def run(reference):
+        def controller(model, data):
+            ref = reference.at(data.time)
+            return os_ct_torque(model, data, site, ref.pos, ref.vel, ref.acc, 64.0, 16.0)
+
+        return sim.simulate(model, data, controller, 0.01, q0=[0.3, 1.2])
+
+    with pytest.raises(ValueError, match=r"sample it first, reference = trajectories.sample\(f, dt, duration\)"):
+        run(circle)
+    assert run(trajectories.sample(circle, model.opt.timestep, 0.01)).t.size
