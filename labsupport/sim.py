@@ -238,7 +238,9 @@ def simulate(
         torque_limit: scalar or ``(nu,)`` symmetric limit; torques are clipped to it. Without an
             ``actuation`` mapping they are also clipped to the actuators' limited ``ctrlrange``
             (MuJoCo would clamp them there silently), so the log holds the torque that acted; a
-            ``RuntimeWarning`` after the run says where that range bound.
+            ``RuntimeWarning`` after the run says where that range bound, and another where the
+            limit held the torque on most steps to the end (a flipped sign can do that without
+            running away).
         log_after_step: record the state *after* the step beside the reference and torque of
             the step's start, as the lab's loops do (the reference then leads the state by one
             step). The default records state, reference and torque of the same instant.
@@ -388,6 +390,8 @@ def simulate(
     if ctrlrange is not None:
         _warn_ctrlrange_bound(model, t_ctrl, tau_log, ctrlrange, limit)
     _check_runaway(t, q, qdot)
+    if limit is not None:  # a run that ran away has said so
+        _warn_held_at_torque_limit(tau_log, limit)
     if log_after_step and with_site:
         ee, ee_rot = site_poses(model, q, site_id)
     if reference is not None:
@@ -611,6 +615,27 @@ def _warn_ctrlrange_bound(model: mujoco.MjModel, t: np.ndarray, tau: np.ndarray,
             f"ctrlrange {', '.join(f'[{lo[i]:g}, {hi[i]:g}]' for i in which)}): the log holds "
             "the torque applied, not the one asked for. Ask for less (smaller gains or a gentler reference), or "
             "pass torque_limit= to make the limit part of the design",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+
+
+#: Above this share of a run's steps, the last among them, a torque held at ``torque_limit`` is
+#: warned of: the run is then the limit's, not the law's.
+HELD_AT_LIMIT_SHARE = 0.5
+
+
+def _warn_held_at_torque_limit(tau: np.ndarray, limit: np.ndarray) -> None:
+    """A ``RuntimeWarning`` when ``torque_limit`` held the torque at its bound on more than
+    :data:`HELD_AT_LIMIT_SHARE` of the steps, the last among them. A law with a flipped sign
+    runs away; held at a limit, it need not, and the run ends without an error, far off."""
+    held = (np.abs(tau) >= limit).any(axis=1)
+    if held[-1] and held.mean() > HELD_AT_LIMIT_SHARE:
+        warnings.warn(
+            f"torque_limit held the torque at its bound on {held.sum()} of {len(held)} steps, the last among "
+            "them: for most of the run the law asked for more than the limit, so the log shows what the limit "
+            "allows, not the law's response. If that is not the design, look for a sign error in the law, or "
+            "gains too high for the limit",
             RuntimeWarning,
             stacklevel=3,
         )

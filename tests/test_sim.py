@@ -81,9 +81,11 @@ def test_a_law_working_in_place_on_the_site_position_leaves_the_logged_tip_alone
 
 def test_torque_limit_clips(arm):
     model, data = arm
-    log = sim.simulate(model, data, constant([50.0, -50.0]), 0.01, torque_limit=[5.0, 2.0])
+    with pytest.warns(RuntimeWarning, match="held the torque at its bound on 5 of 5 steps"):  # held to the end
+        log = sim.simulate(model, data, constant([50.0, -50.0]), 0.01, torque_limit=[5.0, 2.0])
     np.testing.assert_array_equal(log.tau, np.tile([5.0, -2.0], (5, 1)))
-    log = sim.simulate(model, data, constant([50.0, -50.0]), 0.01, torque_limit=3.0)  # one number: every actuator
+    with pytest.warns(RuntimeWarning, match="held the torque"):
+        log = sim.simulate(model, data, constant([50.0, -50.0]), 0.01, torque_limit=3.0)  # one number: every actuator
     np.testing.assert_array_equal(log.tau, np.tile([3.0, -3.0], (5, 1)))
 
 
@@ -773,9 +775,11 @@ def test_the_ctrlrange_that_mujoco_clamps_to_is_the_torque_in_the_log():
     assert log.tau.max() == 20.0 and np.abs(log.tau).max() == 20.0
     np.testing.assert_array_equal(log.tau, limited.tau)
     np.testing.assert_array_equal(log.q, limited.q)  # the torque logged is the torque that acted
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")  # a tighter torque_limit is the run's own: no warning
+    with pytest.warns(RuntimeWarning) as said:  # a tighter torque_limit is the run's own: not ctrlrange's
         sim.simulate(model, data, stiff, 0.5, torque_limit=5.0)
+    assert [str(w.message).split(" held")[0] for w in said] == ["torque_limit"]  # held at it to the end
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
         sim.simulate(model, data, lambda m, d: d.qfrc_bias, 0.5)  # within the range: no warning
 
 
@@ -882,12 +886,12 @@ def test_a_ctrlrange_on_some_motors_bounds_those_alone():
     with pytest.warns(RuntimeWarning, match=r"on 10 of 10 steps.*\(actuators a; ctrlrange \[-1, 100\]\)"):
         log = sim.simulate(model, data, constant([-5.0, -50.0]), 10 * model.opt.timestep)
     np.testing.assert_array_equal(log.tau, np.tile([-1.0, -50.0], (10, 1)))
-    with pytest.warns(RuntimeWarning, match=r"\(actuators a; "):
+    with pytest.warns(RuntimeWarning, match=r"\(actuators a; "), pytest.warns(RuntimeWarning, match="limit held"):
         log = sim.simulate(model, data, constant([-5.0, -50.0]), 10 * model.opt.timestep, torque_limit=30.0)
     np.testing.assert_array_equal(log.tau, np.tile([-1.0, -30.0], (10, 1)))
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")  # the limit is tighter than a's range: the limit's doing, no warning
+    with pytest.warns(RuntimeWarning) as said:  # the limit is tighter than a's range: the limit's doing
         log = sim.simulate(model, data, constant([-5.0, -50.0]), 10 * model.opt.timestep, torque_limit=0.5)
+    assert [str(w.message).split(" held")[0] for w in said] == ["torque_limit"]  # not ctrlrange's
     np.testing.assert_array_equal(log.tau, np.tile([-0.5, -0.5], (10, 1)))
 
 
@@ -1113,3 +1117,21 @@ def test_a_function_of_time_read_as_a_sampled_reference_is_told_to_sample_it(arm
     with pytest.raises(ValueError, match=r"sample it first, reference = trajectories.sample\(f, dt, duration\)"):
         run(circle)
     assert run(trajectories.sample(circle, model.opt.timestep, 0.01)).t.size
+
+
+def test_a_run_held_at_its_torque_limit_to_the_end_is_warned_of():
+    """A law with a flipped sign, held at ``torque_limit``, need not run away: Task 2 with its
+    integral's sign flipped ended with an RMS error of 1950° and no word. Here PD to 1 rad with
+    both gains' signs flipped, held at 3 N·m, turns the arm over and over at under 20 rad/s."""
+    model, data = load_model("single_joint")
+
+    def pd(sign):
+        return lambda model, data: np.array([sign * (5.72 * (1.0 - data.qpos[0]) - 1.9 * data.qvel[0])])
+
+    with pytest.warns(RuntimeWarning, match=r"held the torque at its bound on 5000 of 5000 steps, the last"):
+        log = sim.simulate(model, data, pd(-1.0), 5.0, torque_limit=3.0)
+    assert abs(log.q[-1, 0]) > 10 * np.pi and np.abs(log.qdot).max() < sim.RUNAWAY_SPEED
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the right sign: the limit acts at the start only
+        log = sim.simulate(model, data, pd(1.0), 5.0, torque_limit=3.0)
+    assert 0 < np.mean(np.abs(log.tau) >= 3.0) < sim.HELD_AT_LIMIT_SHARE
