@@ -1863,6 +1863,35 @@ def test_a_computed_torque_without_m_is_told_so_not_sent_to_the_time_step(tmp_pa
     assert as_pd.startswith("the damping is too stiff for the time step") and "Remedies" in as_pd
 
 
+def test_a_pd_with_its_gains_swapped_is_told_so_where_it_runs_not_sent_to_a_lower_kd(tmp_path, monkeypatch, capsys):
+    """PD with Kd multiplying the position error and Kp the velocity diverges at the lab's gains
+    (400, 50): its damping is 400 N·m·s/rad. The run cell advised "a lower Kd (below 167)", taking
+    the swapped 400 for an intended Kd; it now names the swap. The right PD that diverges near the
+    folded arm keeps the time-step words."""
+    from labsupport.grading import as_controller, attempt
+    from labsupport.grading.stability import handed_gains
+    from labsupport.sim import simulate
+
+    monkeypatch.chdir(tmp_path)
+    model = common.arm_model()
+
+    def pd_torque(model, data, q_d, Kp, Kd):
+        return Kd * (q_d - data.qpos) - Kp * data.qvel  # swapped
+
+    assert handed_gains(pd_torque, (np.zeros(3), 400.0, 50.0)) == (400.0, 50.0)
+    assert handed_gains(lambda model, data, q_d, kd, kp: 0, (np.zeros(3), 50.0, 400.0)) == (400.0, 50.0)
+    assert handed_gains(lambda model, data, q_d, gain: 0, (np.zeros(3), 1.0)) is None
+    assert handed_gains(pd_torque, (np.zeros(3), "400", None)) is None
+
+    q_target = np.array([0.3, 0.5, 0.6])
+    ctrl = as_controller(pd_torque, q_target, 400.0, 50.0)
+    data = mujoco.MjData(model)
+    assert attempt("PD", lambda: simulate(model, data, ctrl, 2.0, q0=problem1.Q0), ctrl, model) is None
+    said = capsys.readouterr().out
+    assert "the closed loop damps with 400 N·m·s/rad on every joint: the Kp = 400 the law was handed" in said, said
+    assert "Kp and Kd look swapped in the law" in said and "lower Kd" not in said
+
+
 @pytest.mark.parametrize(
     "wrong",
     [

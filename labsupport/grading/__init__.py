@@ -46,7 +46,7 @@ from labsupport.grading.feedback import (
     where_raised,
 )
 from labsupport.grading.rules import ForbiddenUse, call_watched, forbidden_message
-from labsupport.grading.stability import Trace, explain_divergence, target_in_degrees
+from labsupport.grading.stability import Trace, explain_divergence, handed_gains, target_in_degrees
 from labsupport.sim import CONTROLLER_RAISED, SimulationDiverged, controller_name, state_written
 from labsupport.validate import short
 
@@ -240,7 +240,10 @@ def attempt(label: str, run: Callable, controller: StudentController | None = No
         if reason is not None:
             reason += f" ({err.reason})."
         elif controller is not None and model is not None:
-            reason = explain_divergence(model, controller.torque, controller.trace, err.t, law=controller.name)
+            gains = None if controller.moving else handed_gains(controller.fn, controller.args)
+            reason = explain_divergence(
+                model, controller.torque, controller.trace, err.t, law=controller.name, gains=gains
+            )
         if reason is None and controller is not None and controller.largest > HUGE_TORQUE:
             largest = f"The law asked for torques of up to {controller.largest:.3g} N·m"
             reason = f"{err.reason}. {largest}: {HUGE_TORQUE_HINT}"

@@ -108,7 +108,13 @@ def is_computed_torque(name: str | None) -> bool:
 
 
 def stiff_damping(
-    model: mujoco.MjModel, torque: Callable, q, qdot, t: float = 0.0, computed_torque: bool = False
+    model: mujoco.MjModel,
+    torque: Callable,
+    q,
+    qdot,
+    t: float = 0.0,
+    computed_torque: bool = False,
+    gains: tuple[float, float] | None = None,
 ) -> str | None:
     r"""If the controller's damping at this state is too stiff for the time step, say so with the
     numbers and what to do; ``None`` if it is not.
@@ -128,6 +134,8 @@ def stiff_damping(
             means the feedback is not multiplied by :math:`M(q)`, which the words say instead of
             blaming the time step (computed torque's own damping :math:`M K_d` decays at
             :math:`K_d`, far inside the limit at the Problems' gains).
+        gains: the ``(Kp, Kd)`` the law was handed (:func:`handed_gains`), if known: a PD whose
+            damping is its Kp instead has the two swapped, which the words then say.
     """
     limit = STABILITY_LIMIT
     if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qdot))):
@@ -161,6 +169,13 @@ def stiff_damping(
                     f"(Kd·Δt = {kd * dt:.3g}): multiply the whole feedback, Kp e + Kd ė (plus q̈_d), by M(q), "
                     "then add h. A smaller time step would only hide the missing M."
                 )
+            if gains is not None and np.isclose(kd, gains[0], rtol=0.05) and not np.isclose(*gains, rtol=0.05):
+                return (
+                    f"{when}, the closed loop damps with {kd:.3g} N·m·s/rad on every joint: the Kp = {gains[0]:g} "
+                    f"the law was handed, not its Kd = {gains[1]:g}. Kp and Kd look swapped in the law: Kp "
+                    f"multiplies the position error q_d − q, Kd the velocity q̇. With the swap, Kd·Δt/M = "
+                    f"{ratios[j]:.3g} at {name} (M = {inertia:.4g} kg·m²) is {above}."
+                )
             return (
                 f"the damping is too stiff for the time step. {when}, the {name} has inertia "
                 f"M = {inertia:.4g} kg·m² and the damping of the closed loop is Kd = {kd:.3g} N·m·s/rad on "
@@ -193,7 +208,13 @@ def stiff_damping(
 
 
 def explain_divergence(
-    model: mujoco.MjModel, torque: Callable, trace: Trace, until: float, samples: int = 40, law: str | None = None
+    model: mujoco.MjModel,
+    torque: Callable,
+    trace: Trace,
+    until: float,
+    samples: int = 40,
+    law: str | None = None,
+    gains: tuple[float, float] | None = None,
 ) -> str | None:
     """Why a run that diverged at ``until`` [s] did: the stiff-damping explanation
     (:func:`stiff_damping`) at the earliest recorded state where it applies (up to ``samples``
@@ -204,16 +225,28 @@ def explain_divergence(
     when it ends, so the trace may hold states turning at thousands of rad/s, where the bias
     forces' dependence on the velocity alone looks like a huge damping, and a law that is itself
     unstable (a sign error) would be told it is not. ``law`` is the law's name, which says
-    whether it is meant as a computed torque (:func:`is_computed_torque`)."""
+    whether it is meant as a computed torque (:func:`is_computed_torque`); ``gains`` those it was
+    handed, if known (:func:`stiff_damping`)."""
     states = [s for s in trace.states if s[2] <= until]
     if not states:
         return None
     for k in np.unique(np.linspace(0, len(states) - 1, min(samples, len(states))).astype(int)):
         q, qdot, t = states[k]
-        reason = stiff_damping(model, torque, q, qdot, t, computed_torque=is_computed_torque(law))
+        reason = stiff_damping(model, torque, q, qdot, t, computed_torque=is_computed_torque(law), gains=gains)
         if reason is not None:
             return reason
     return None
+
+
+def handed_gains(law: Callable, args: tuple) -> tuple[float, float] | None:
+    """The ``(Kp, Kd)`` a law was handed in ``args`` (its arguments after ``data``), found by its
+    parameters' names (``Kp`` and ``Kd``, in any case); ``None`` where it has no such two, or
+    they were not handed numbers."""
+    try:
+        names = [name.lower() for name in list(inspect.signature(law).parameters)[2:]]
+        return float(args[names.index("kp")]), float(args[names.index("kd")])
+    except (TypeError, ValueError, IndexError):  # a builtin, no such names, or not numbers
+        return None
 
 
 def target_in_degrees(law: Callable, args: tuple) -> str | None:
