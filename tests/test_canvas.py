@@ -546,6 +546,33 @@ def test_a_notebook_of_another_problem_is_named_in_the_report(tmp_path):
     assert named[0] in (tmp_path / "out" / "report.txt").read_text(encoding="utf-8")
 
 
+def test_another_notebook_beside_the_graded_one_is_named_to_the_student_and_the_instructor(tmp_path):
+    """A student handed in the blank hand-out under the Problem's name and the work as
+    Untitled.ipynb: the blank one was graded, 0 was imported, and neither the feedback nor the
+    report's notes said that another notebook was there (only the list of files not graded did)."""
+    members = {
+        "oharasean_1236_60003_problem1_reaching.ipynb": fake_notebook(p1_ik=0, p1_pd=0, p1_ct=0, p1_reach=0),
+        "oharasean_1236_60011_Untitled.ipynb": fake_notebook(p1_ik=3, p1_pd=2, p1_ct=3, p1_reach=2),
+        "oharasean_1236_60012_notes.pdf": b"%PDF-1.4 not a notebook",
+        "smithbob_1234_60001_problem1_reaching.ipynb": fake_notebook(p1_ik=3, p1_pd=2, p1_ct=3, p1_reach=2),
+        "smithbob_1234_60002_Untitled.ipynb": fake_notebook(p1_ik=0, p1_pd=0, p1_ct=0, p1_reach=0),
+        "leekim_1238_60004_problem1_reaching.ipynb": fake_notebook(p1_ik=3, p1_pd=2, p1_ct=0, p1_reach=0),
+        "leekim_1238_60005_problem1_reaching-1.ipynb": fake_notebook(p1_ik=3, p1_pd=2, p1_ct=3, p1_reach=0),
+    }
+    out = tmp_path / "out"
+    result = canvas.grade_canvas(build_zip(tmp_path / "z.zip", members), EXPORT, SPEC, out, grade=fake_grade([]))
+    assert result.scores[1236] == "0" and result.others == {1236: ["Untitled.ipynb"], 1234: ["Untitled.ipynb"]}
+    sean = result.feedback[1236].read_text(encoding="utf-8")
+    assert "File graded: problem1_reaching.ipynb\nAlso handed in, not graded: Untitled.ipynb. One notebook" in sean
+    assert "Also handed in" in result.feedback[1234].read_text(encoding="utf-8")  # told, though full marks
+    assert "Also handed in" not in result.feedback[1238].read_text(encoding="utf-8")  # an older upload only
+    look = [n for n in result.notes if "also handed in" in n]
+    assert (
+        len(look) == 1 and "problem1_reaching.ipynb scored 0, and the student also handed in Untitled.ipynb" in look[0]
+    )
+    assert look[0] in (out / "report.txt").read_text(encoding="utf-8")
+
+
 def test_no_scaling_when_the_column_is_worth_the_checks(tmp_path):
     export = tmp_path / "export.csv"
     export.write_text(

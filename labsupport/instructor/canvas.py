@@ -17,7 +17,8 @@ Gradebook's *Export* gives, grades each student's notebook with
   ``OUT/feedback_upload.zip`` holding them all, for the assignment's *Re-upload Submissions*;
 * ``OUT/report.txt``: what was graded and what was not, and why (grades in Canvas that the
   import replaces, files that match no student, students with no submission, unreadable files,
-  late work, resubmissions, scaling);
+  late work, resubmissions, scaling, and a score below full marks beside another notebook of the
+  student's, which the feedback names too);
 * ``OUT/batch/``: the batch grader's own ``grades.csv`` and feedback, the Problem's rubric
   (``rubric.md``, and ``rubric_canvas.csv`` for the course's *Rubrics → Import Rubric*), and
   the pairs of students who share code (``similarity.html``: :mod:`labsupport.instructor.similarity`).
@@ -111,6 +112,7 @@ class CanvasResult:
     late: list[str] = field(default_factory=list)
     resubmissions: list[str] = field(default_factory=list)
     not_graded: list[str] = field(default_factory=list)  #: files of known students left aside
+    others: dict[int, list[str]] = field(default_factory=dict)  #: user id -> other notebooks handed in, not graded
     not_scored: list[str] = field(default_factory=list)  #: graded files whose status gave no score
     excused: list[str] = field(default_factory=list)  #: graded files of students excused in Canvas, left so
     unreadable: list[str] = field(default_factory=list)  #: files the grader could not read (scored 0), and why
@@ -247,6 +249,15 @@ def _select_submissions(
             )
             continue
         chosen[user] = pick
+        others = [  # the work may be in one (an Untitled.ipynb beside the blank hand-out), not another Problem's
+            f.original
+            for f in files
+            if f.is_notebook
+            and plain(f.base_name) != plain(pick.base_name)
+            and not other_problem(f.base_name, spec["problem"])
+        ]
+        if others:
+            result.others[user] = others
         if pick.late:
             result.late.append(f"{who}: {pick.entry}")
         if pick.resubmission:
@@ -355,6 +366,11 @@ def _record_scores(
         for note in row.get("notes", []):  # Problem 2's work under Problem 1's file name, say
             if OTHER_PROBLEM_MARK in note:
                 result.notes.append(f"{who}: {f.original}: {note}")
+        if user in result.others and total < result.maximum:
+            result.notes.append(
+                f"{who}: {f.original} scored {score}, and the student also handed in "
+                f"{', '.join(result.others[user])}, not graded: look at it in case the work is there"
+            )
         if previous and previous not in ("-", score) and decimal_point(previous) != score:
             result.replaced.append(f"{who}: replaces the grade {previous} already in Canvas with {score}")
         result.scores[user] = score
@@ -382,6 +398,11 @@ def feedback_text(
         f"File graded: {clean_text(f.original)}" + ("  (late)" if f.late else ""),
         "",
     ]
+    if others := result.others.get(f.user_id):
+        lines[-1:-1] = [
+            f"Also handed in, not graded: {clean_text(', '.join(others))}. One notebook is graded per Problem, "
+            "the one named after it; if your work is in another, tell your instructor."
+        ]
     if row.get("status") in SCORED_STATUSES:
         out_of = result.points_possible if result.points_possible is not None else result.maximum
         lines.append(f"Score: {score} / {format_score(out_of)}")
