@@ -196,7 +196,8 @@ def test_an_empty_upload_is_unreadable_and_says_to_ask_for_it_again(tmp_path):
     assert rows["empty.ipynb"]["reason"] == f"{EMPTY_REASON}; {batch.UNSAFE_NOTE}"
     assert rows["broken.ipynb"]["reason"].startswith("not a valid notebook: invalid JSON")
     feedback = (tmp_path / "out" / "feedback" / "empty.txt").read_text(encoding="utf-8")
-    assert f"- p1_ik (- / 3): not graded: {EMPTY_REASON}" in feedback
+    assert f"- p1_ik (0 / 3): {judge.UNREADABLE}" in feedback  # the reason once, below, not per check
+    assert feedback.count(EMPTY_REASON) == 1 and feedback.endswith(f"Notes:\n- {EMPTY_REASON}\n- {batch.UNSAFE_NOTE}\n")
 
 
 def test_canvas_lists_unreadable_uploads_in_the_report(tmp_path):
@@ -214,7 +215,7 @@ def test_canvas_lists_unreadable_uploads_in_the_report(tmp_path):
     assert result.unreadable == [
         f"Smith, Bob: problem1_reaching.ipynb: {EMPTY_REASON}",
         "García, Ana: problem1_reaching.ipynb: not a valid notebook: invalid JSON "
-        "(Expecting property name enclosed in double quotes at line 1)",
+        f"(Expecting property name enclosed in double quotes at line 1), cut short or edited; {judge.DOWNLOAD_AGAIN}",
     ]
     report = (tmp_path / "out" / "report.txt").read_text(encoding="utf-8")
     section = next(part for part in report.split("\n\n") if part.startswith("Unreadable files"))
@@ -675,10 +676,11 @@ def test_an_unscored_rows_feedback_gives_each_check_its_reason():
     ]
     assert lines[-3:] == ["Notes:", f"- {reason}", f"- {batch.UNSAFE_NOTE}"]
     # an upload that could not be read (here an empty file) scores zero: no check adds a point
-    empty = {"status": "unreadable", "scores": {}, "messages": {}, "notes": [batch.EMPTY_FILE]}
+    empty = judge.unreadable_row([c["name"] for c in spec["checks"]], batch.EMPTY_FILE)
     lines = batch.feedback_text("empty.ipynb", spec, empty).splitlines()
     assert lines[2] == f"Score: 0 / {maximum:g}   (status: unreadable)"
-    assert lines[4].endswith(f"not graded: {batch.EMPTY_FILE}")
+    assert lines[4].endswith(f"(0 / {float(spec['checks'][0]['points']):g}): {judge.UNREADABLE}")
+    assert lines[-2:] == ["Notes:", f"- {batch.EMPTY_FILE}"]
 
 
 def test_a_zip_holding_a_symbolic_link_is_refused(tmp_path):

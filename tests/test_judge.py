@@ -232,9 +232,12 @@ def test_an_unreadable_notebook_scores_zero_on_every_check_without_a_sandbox(che
     row = judge.grade(spec(c_double=2, c_half=1), b"this is not a notebook", SEED, no_sandbox)
     assert row["status"] == "unreadable"
     assert row["scores"] == {"c_double": 0.0, "c_half": 0.0}
-    reason = row["notes"][0]
-    assert reason.startswith("not a valid notebook") and row["notes"] == [reason]
-    assert row["messages"] == {"c_double": reason, "c_half": reason}
+    reason = row["notes"][0]  # said once, in words a student can act on
+    assert reason.startswith("not a notebook: a notebook (.ipynb) is JSON text that starts with {, and this file ")
+    assert "starts with 'this is not a notebook' (a Python file renamed" in reason and judge.DOWNLOAD_AGAIN in reason
+    assert row["notes"] == [reason] and row["messages"] == {"c_double": judge.UNREADABLE, "c_half": judge.UNREADABLE}
+    cut = judge.grade(spec(c_double=2, c_half=1), b'{"cells": [', SEED, no_sandbox)["notes"][0]
+    assert cut.startswith("not a valid notebook: invalid JSON (Expecting value at line 1), cut short or edited; open")
 
 
 def test_a_notebook_that_ends_its_own_process_is_not_graded_and_said_so_once(start, checks):

@@ -180,7 +180,7 @@ def _grade_row(payload, spec: dict, seed: int, layout, unsafe_root, budget: judg
     name, data, read_error = payload
     t0 = time.monotonic()
     if read_error is not None:
-        row = {"status": "unreadable", "scores": {}, "messages": {}, "notes": [read_error]}
+        row = judge.unreadable_row([c["name"] for c in spec["checks"]], read_error)
     else:
         if layout is not None:
             limits = layout.limits

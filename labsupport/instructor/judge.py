@@ -536,17 +536,50 @@ def other_problem_note(text: bytes, problem: str | None) -> str | None:
     )
 
 
+#: How a student gets a file that opens as a notebook.
+DOWNLOAD_AGAIN = "open the notebook in Jupyter or Colab, use File → Download → Download .ipynb, and hand in that file"
+
+#: Each check's message for a file that could not be read as a notebook: the note below says why, once.
+UNREADABLE = "no points: the file could not be read as a notebook; the note below says why"
+
+
+def unreadable_row(names: list[str], reason: str) -> dict:
+    """The row of a file that could not be read as a notebook: zero on every check of ``names``,
+    each message pointing to the one note, ``reason``."""
+    return {
+        "status": "unreadable",
+        "scores": dict.fromkeys(names, 0.0),
+        "messages": dict.fromkeys(names, UNREADABLE),
+        "notes": [reason],
+    }
+
+
+def _not_json(text: str, err: json.JSONDecodeError) -> str:
+    """Why a file that is not JSON is no notebook: one cut short or edited by hand still starts
+    with ``{``; one that does not was never a notebook (a ``.py`` file renamed, a web page)."""
+    start = text.lstrip("\ufeff \t\r\n")
+    if start.startswith("{"):
+        where = f"{err.msg} at line {err.lineno}"
+        return f"not a valid notebook: invalid JSON ({where}), cut short or edited; {DOWNLOAD_AGAIN}"
+    first = start.splitlines()[0][:60]
+    return (
+        f"not a notebook: a notebook (.ipynb) is JSON text that starts with {{, and this file starts with "
+        f"{first!r} (a Python file renamed .ipynb, or a web page saved?); {DOWNLOAD_AGAIN}"
+    )
+
+
 def read_cells(text: bytes) -> list[tuple[int, str]]:
     """``(cell index, source)`` of every code cell; ValueError with a plain reason if unreadable.
 
     Reads the notebook format 4 (``cells``, each with a ``source``) and the older format 3 that
     Jupyter still opens (``worksheets`` of cells, a code cell's text in ``input``)."""
     try:
-        nb = json.loads(text.decode("utf-8"))
+        decoded = text.decode("utf-8")
+        nb = json.loads(decoded)
     except UnicodeDecodeError:
-        raise ValueError("not a notebook: the file is not UTF-8 text") from None
+        raise ValueError(f"not a notebook: the file is not UTF-8 text; {DOWNLOAD_AGAIN}") from None
     except json.JSONDecodeError as err:
-        raise ValueError(f"not a valid notebook: invalid JSON ({err.msg} at line {err.lineno})") from None
+        raise ValueError(_not_json(decoded, err)) from None
     except RecursionError:
         raise ValueError("not a valid notebook: its JSON is nested too deeply") from None
     if isinstance(nb, dict) and nb.get("nbformat") == 3 and isinstance(nb.get("worksheets"), list):
@@ -787,11 +820,10 @@ def grade(
     checks = registry()
     names = [c["name"] for c in spec["checks"]]
     points = {c["name"]: float(c["points"]) for c in spec["checks"]}
-    zero = {n: 0.0 for n in names}
     try:
         cells = read_cells(notebook)
     except ValueError as err:
-        return {"status": "unreadable", "scores": zero, "messages": {n: str(err) for n in names}, "notes": [str(err)]}
+        return unreadable_row(names, str(err))
 
     command, env, cwd = start()
     probe = SandboxProbe(command, cells, budget, env=env, cwd=cwd, limits=limits)
