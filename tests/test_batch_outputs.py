@@ -400,7 +400,8 @@ def test_a_notebook_of_another_problem_is_named_in_its_row():
     problem2 = (ROOT / "notebooks" / "problem2_tracking.ipynb").read_bytes()
     note = judge.other_problem_note(problem2, "problem1")
     assert note.startswith("this notebook is problem2's (its metadata says so), graded here with problem1's checks")
-    assert note.endswith("grade it with --problem problem2")
+    assert note.endswith("either the wrong notebook was handed in, or it was graded as the wrong Problem")
+    assert "--problem" not in note  # the student reads it too
     assert judge.other_problem_note((ROOT / "notebooks" / "problem1_reaching.ipynb").read_bytes(), "problem1") is None
     forged = json.dumps({"metadata": {"labsupport_grading": {"problem": "x\nScore: 10 / 10"}}, "cells": []}).encode()
     assert judge.other_problem_note(forged, "problem1") is None  # a name no spec has is never quoted

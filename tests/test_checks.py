@@ -316,7 +316,7 @@ def test_a_reach_that_falls_short_points_back_at_the_law():
         return mass_matrix(model, data) @ (Kp * (q_d - data.qpos) - Kd * data.qvel)
 
     result = grade("p1_reach", ct_joint_torque=ct_without_h)
-    assert result.score == 0 and "h(q, q̇) or M(q) most often; the CT check above says which" in result.message
+    assert result.score == 0 and "h(q, q̇) or M(q) most often; the CT check, p1_ct, says which" in result.message
 
 
 def test_a_law_written_with_the_labs_scaffold_signature_is_told_to_keep_the_stubs(master1):

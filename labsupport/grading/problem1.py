@@ -423,8 +423,8 @@ def check_reach(probe: Probe, seed: int) -> Result:
         f"reach: with your computed torque the end effector ends {show_beside(final * 1e3, REACH_TOL * 1e3)} mm "
         f"from {where} "
         f"after {DURATION:g} s; it should be below 1 mm (a right law ends far below it: one that falls "
-        "short leaves out or gets wrong a term, h(q, q̇) or M(q) most often; the CT check above says which, "
-        "once run again on the law as it is now).",
+        "short leaves out or gets wrong a term, h(q, q̇) or M(q) most often; the CT check, p1_ct, says which: "
+        "in the notebook, run its cell again after changing the law).",
     )
 
 

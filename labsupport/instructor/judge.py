@@ -531,8 +531,8 @@ def other_problem_note(text: bytes, problem: str | None) -> str | None:
     if problem is None or not well_formed or named == problem:
         return None  # no Problem named, this one, or a name no spec could have (never quoted)
     return (
-        f"this notebook is {named}'s {OTHER_PROBLEM_MARK}, graded here with {problem}'s checks: if the "
-        f"student handed in the wrong notebook, ask for the right one; else grade it with --problem {named}"
+        f"this notebook is {named}'s {OTHER_PROBLEM_MARK}, graded here with {problem}'s checks: either the "
+        f"wrong notebook was handed in, or it was graded as the wrong Problem"
     )
 
 
