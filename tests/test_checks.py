@@ -643,7 +643,7 @@ def test_ik_ct_mistakes_are_named(master2):
         (at_reference("M"), 0.75, "M is taken at the reference (q_d, q̇_d), from the scratch MjData"),
         (at_reference("h"), 0.75, "h is taken at the reference (q_d, q̇_d), from the scratch MjData"),
         (ik_variant(ik, kd=0.0), 0.5, "the damping term Kd (q̇_d − q̇) inside M(q)(...) is missing"),
-        (ik_variant(ik, kd=-1.0), 0.5, "the damping has the wrong sign: Kd (q̇_d − q̇)"),
+        (ik_variant(ik, kd=-1.0), 0.5, "the damping has the wrong sign: it must be +Kd (q̇_d − q̇)"),
         (ik_variant(ik, bias=lambda model, data: bias_subtracted(model, data)), 0.25, "must be added, not subtracted"),
     ):
         result = grade("p2_ikct", ct_ik_joint_torque=fn)
@@ -763,7 +763,7 @@ def test_a_joint_velocity_in_the_task_damping_and_a_transposed_solve_are_named()
         ({"mass": lambda M: np.eye(3)}, 0.25, "the mass matrix is missing: τ = M(q) J⁻¹(...) + h"),
         ({"mass": np.linalg.inv}, 0.25, "the law multiplies by M(q)⁻¹ where it should multiply by M(q)"),
         ({"kp": -1.0, "kd": -1.0}, 0.0, "the feedback terms (Kp, Kd) have the wrong sign: e = x_d − x"),
-        ({"kd": -1.0}, 0.5, "the damping has the wrong sign: Kd (ẋ_d − J q̇)"),
+        ({"kd": -1.0}, 0.5, "the damping has the wrong sign: it must be +Kd (ẋ_d − J q̇)"),
         ({"kd": 0.0}, 0.5, "the damping term Kd (ẋ_d − J q̇) is missing"),
     ],
     ids=["no_M", "inverse_M", "feedback_sign", "damping_sign", "no_damping"],

@@ -269,7 +269,7 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
             0.0,
         ),
         "damping_sign": Mistake(
-            law(xdd_d - Kd * edot + Kp * e - jdq), "the damping has the wrong sign: Kd (ẋ_d − J q̇).", 0.5
+            law(xdd_d - Kd * edot + Kp * e - jdq), "the damping has the wrong sign: it must be +Kd (ẋ_d − J q̇).", 0.5
         ),
         "no_damping": Mistake(law(xdd_d + Kp * e - jdq), "the damping term Kd (ẋ_d − J q̇) is missing.", 0.5),
         "joint_velocity": Mistake(
@@ -411,7 +411,7 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
         ),
         "damping_sign": Mistake(
             M @ (qdd_d - Kd * (qd_d - qdot) + Kp * (q_d - q)) + h,
-            "the damping has the wrong sign: Kd (q̇_d − q̇).",
+            "the damping has the wrong sign: it must be +Kd (q̇_d − q̇).",
             0.5,
         ),
         "own_gains": own_gains_mistake(M @ (qdd_d + KD * (qd_d - qdot) + KP * (q_d - q)) + h, KP, KD),
