@@ -115,9 +115,9 @@ def test_every_notebook_gets_a_row_whatever_the_case_of_its_extension(tmp_path, 
     # a.ipynb and a.IPYNB share a stem: each keeps a feedback file of its own
     feedback = {p.name: p.read_text(encoding="utf-8") for p in (tmp_path / "out" / "feedback").iterdir()}
     assert {name: text.splitlines()[0] for name, text in feedback.items()} == {
-        "B.txt": "Feedback on B.Ipynb (problem1)",
-        "a.txt": "Feedback on a.IPYNB (problem1)",
-        "a-2.txt": "Feedback on a.ipynb (problem1)",
+        "B.txt": "Feedback on B.Ipynb (Problem 1)",
+        "a.txt": "Feedback on a.IPYNB (Problem 1)",
+        "a-2.txt": "Feedback on a.ipynb (Problem 1)",
     }
     # a line break or a control character in a file name does not reach the feedback file's name
     assert batch.feedback_names(["two\nlines.ipynb", "bell\x07.ipynb", "two lines.ipynb"]) == {

@@ -415,7 +415,7 @@ def test_feedback_files_carry_the_score_and_every_message_and_canvas_can_match_t
     smith = result.feedback[1234]
     assert smith.name == "smithbob_1234_50001_feedback.txt"
     text = smith.read_text()
-    assert text.splitlines()[0] == "Feedback on problem1 for Smith, Bob"  # outputs.FEEDBACK_HEADER, as the batch's
+    assert text.splitlines()[0] == "Feedback on Problem 1 for Smith, Bob"  # outputs.FEEDBACK_HEADER, as the batch's
     assert "Score: 20 / 20" in text and "(10 of the checks' 10 points, scaled)" in text
     for check, points in (("p1_ik", 6), ("p1_pd", 4), ("p1_ct", 6), ("p1_reach", 4)):  # in the column's 20
         assert f"- {check} ({points} / {points}): {check} message for smithbob_1234" in text

@@ -77,6 +77,7 @@ from labsupport.instructor.outputs import (
     csv_cell,
     keep_previous,
     keep_private,
+    problem_title,
 )
 from labsupport.instructor.rubric import canvas_rubric_csv, rubric
 from labsupport.instructor.submissions import held, is_os_metadata, is_zip, open_zip, safe_zip_entries, zip_notebooks
@@ -140,7 +141,7 @@ def left_aside(folder: Path) -> list[str]:
 
 def feedback_text(name: str, spec: dict, row: dict) -> str:
     """The feedback file of one student: total, then each check's score and message, then notes."""
-    lines = [f"{FEEDBACK_HEADER}{clean_text(name)} ({spec['problem']})", ""]
+    lines = [f"{FEEDBACK_HEADER}{clean_text(name)} ({problem_title(spec['problem'])})", ""]
     maximum = sum(float(c["points"]) for c in spec["checks"])
     if row["status"] in UNSCORED:
         lines.append(f"Score: not recorded / {maximum:g}   (status: {row['status']})")

@@ -77,6 +77,7 @@ from labsupport.instructor.outputs import (
     counted,
     keep_previous,
     keep_private,
+    problem_title,
 )
 from labsupport.instructor.rubric import canvas_rubric_csv, full_marks
 from labsupport.instructor.submissions import (
@@ -394,7 +395,7 @@ def feedback_text(
     in the column's points too (:func:`rubric_scale`, as ``rubric_canvas.csv``): what the rubric
     students see says a check is worth is what their feedback says it is worth."""
     lines = [
-        f"{FEEDBACK_HEADER}{spec['problem']} for {clean_text(who)}",
+        f"{FEEDBACK_HEADER}{problem_title(spec['problem'])} for {clean_text(who)}",
         f"File graded: {clean_text(f.original)}" + ("  (late)" if f.late else ""),
         "",
     ]

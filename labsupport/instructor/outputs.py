@@ -9,6 +9,7 @@ report (:mod:`labsupport.instructor.similarity`).
 from __future__ import annotations
 
 import os
+import re
 import unicodedata
 from pathlib import Path
 
@@ -20,6 +21,12 @@ _BIDI_CONTROLS = frozenset("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u20
 
 #: How every feedback file either grader writes begins (how an earlier run's is recognised).
 FEEDBACK_HEADER = "Feedback on "
+
+
+def problem_title(problem: str) -> str:
+    """How a feedback file names a Problem: ``"problem1"`` (the spec's id) as ``"Problem 1"``."""
+    return re.sub(r"^problem(\d+)$", r"Problem \1", problem)
+
 
 #: The files a batch writes that a regrade into the same folder moves into ``previous/`` (with
 #: the feedback files it wrote: :func:`keep_previous`'s ``feedback``); the rubric too, whose
