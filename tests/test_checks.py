@@ -390,10 +390,18 @@ def test_ik_mistakes_are_named(master1):
     ik = master1["ik_3r"]
     degrees = grade("p1_ik", ik_3r=lambda x, elbow_up=True: np.degrees(ik(x, elbow_up)))
     assert degrees.score == 0 and "in degrees" in degrees.message and "radians" in degrees.message
+    # both branches solved, but swapped: half, as an IK that solves one branch for both (it scored 0,
+    # below that one, while it had done more)
     swapped = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, not elbow_up))
-    assert swapped.score == 0 and "that is the elbow-down branch" in swapped.message
+    assert swapped.score == 0.5 and "but each on the other elbow branch than the one asked" in swapped.message
+    assert "Swap the two branches" in swapped.message
     one_branch = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, True))
     assert one_branch.score == 0.5 and "elbow-up branch" in one_branch.message
+    # swapped on most targets but not all: counted call by call, as before
+    first = problem1.draw_configuration(problem1.rng_for(PUBLIC_SEED, "p1_ik"), elbow_up=True)
+    target = common.tip(common.arm_model(), first)
+    mostly = grade("p1_ik", ik_3r=lambda x, elbow_up=True: ik(x, elbow_up == np.allclose(x, target)))
+    assert mostly.score == pytest.approx(2 / (2 * problem1.N_TARGETS)) and "Swap" not in mostly.message
 
     def worst_error(result) -> float:
         return float(re.search(r"worst error (\S+) m", result.message).group(1))

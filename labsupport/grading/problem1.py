@@ -141,6 +141,7 @@ def check_ik(probe: Probe, seed: int) -> Result:
     rng = rng_for(seed, name)
     targets = [tip(model, draw_configuration(rng, elbow_up=bool(k % 2 == 0))) for k in range(N_TARGETS)]
     good, total, problems, errors, worst, unwrapped = 0, 0, [], [], 0.0, []
+    other_branch = 0  # solutions right for the other elbow_up
     hung = dict.fromkeys((True, False), 0)  # calls per branch that did not return
     untried = dict.fromkeys((True, False), 0)  # calls not made after MAX_TIMEOUTS of them
     # one branch on every target, then the other: an IK that hangs on one branch does so after
@@ -176,6 +177,7 @@ def check_ik(probe: Probe, seed: int) -> Result:
                 unwrapped.append(q)
         else:
             problems.append(f"{where}: {problem}")
+            other_branch += _ik_problem(model, q, x, not up) is None
     if good == total:
         return passed(
             name,
@@ -183,6 +185,14 @@ def check_ik(probe: Probe, seed: int) -> Result:
             f"end effector on the target, elbow on the side asked (worst error {worst:.1e} m)."
             + _unwrapped_note(unwrapped)
             + _unreachable_note(probe),
+        )
+    if other_branch == total:  # a convention swapped, as Kp and Kd can be: half, as for them
+        return failed(
+            name,
+            f"IK: all {total} solutions put the end effector on the target, but each on the other elbow branch "
+            "than the one asked: elbow_up=True must put the elbow above the shoulder-to-target line (θ = "
+            "+arccos(...)), and elbow_up=False below it. Swap the two branches.",
+            0.5,
         )
     if len(errors) == total and all(isinstance(err, NotImplementedYet) for err in errors):
         return refused(name, label, errors[0])  # None for every target: not implemented yet
