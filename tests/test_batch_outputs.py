@@ -93,6 +93,18 @@ def test_an_output_folder_that_cannot_be_written_is_refused_before_grading(tmp_p
 # --- which files are graded ---------------------------------------------------------------------
 
 
+def test_one_file_handed_in_twice_is_said_before_the_similarity_report_pairs_it(tmp_path, capsys):
+    """``alice.ipynb`` and ``alice (1).ipynb``, the same bytes, got two rows without a word, and
+    the shared-code report then paired them as if two students had shared code."""
+    subs = _folder(tmp_path / "subs", {"alice.ipynb": b"{}", "alice (1).ipynb": b"{}", "bob.ipynb": b"{ }"})
+    rows = batch.run_batch(subs, SPEC, tmp_path / "out", jobs=1, seed=1, unsafe_no_sandbox=True)
+    assert len(rows) == 3  # each is graded all the same
+    said = capsys.readouterr().err
+    assert "the same file, byte for byte: alice (1).ipynb, alice.ipynb (one student's file twice, or a copy)" in said
+    assert "bob.ipynb" not in said
+    assert batch.identical_files([("a", b"x", None), ("b", None, "empty"), ("c", None, "empty")]) == []
+
+
 def test_every_notebook_gets_a_row_whatever_the_case_of_its_extension(tmp_path, capsys):
     """``.IPYNB`` used to be skipped, and the files left aside were not named; they were named on
     the screen only, and a subfolder of notebooks looked like any other file left aside."""

@@ -255,6 +255,12 @@ def run_batch(
         print("not graded (not .ipynb files): " + clean_text(", ".join(aside)), file=sys.stderr)
     # read everything first: nothing a submission does later can lose another one
     payloads = read_submissions(files)
+    for same in identical_files(payloads):  # one student's file twice, most often: the report would pair it
+        print(
+            f"the same file, byte for byte: {clean_text(', '.join(same))} (one student's file twice, or a copy); "
+            "each is graded, and similarity.html pairs them",
+            file=sys.stderr,
+        )
     seed = new_seed() if seed is None else int(seed)
     registry()  # the checks are loaded once, before the workers fork: every row uses the same code
     budget = budget or judge.Budget(wall=timeout)
@@ -332,6 +338,15 @@ def read_submissions(files: list[Path]) -> list[tuple[str, bytes | None, str | N
         except OSError as err:
             payloads.append((p.name, None, f"could not read the file: {err.strerror}"))
     return payloads
+
+
+def identical_files(payloads: list[tuple[str, bytes | None, str | None]]) -> list[list[str]]:
+    """The names of the files whose bytes are the same, in groups of two or more."""
+    by_content: dict[str, list[str]] = {}
+    for name, data, _ in payloads:
+        if data:
+            by_content.setdefault(hashlib.sha256(data).hexdigest(), []).append(name)
+    return [names for names in by_content.values() if len(names) > 1]
 
 
 def shared_code_reports(
