@@ -20,12 +20,15 @@ document.addEventListener("DOMContentLoaded", () => {
 
 /* Figures on a phone (labsupport.book.show_figure). A figure drawn for a 744 px column is shown
    358 px wide on a phone, and its tick labels shrink to about 3 px. Where a figure is shown
-   narrower than it was drawn, a "Full size" toggle button under it shows it at the size it was
+   narrower than it was drawn, a "Full size" toggle button above it shows it at the size it was
    drawn, in a frame that scrolls sideways (and takes the keyboard's focus, so the arrow keys
-   scroll it too); pressed again, the figure fits the page again. Where the figure fits, the
-   button is hidden. */
+   scroll it too: the button comes first, so Tab goes on from it into the frame); pressed again,
+   the figure fits the page again. Where the figure fits, the button is hidden. Each button's
+   name says which figure it is for ("Full size, figure 2 of 7"), as a screen reader's list of
+   buttons shows them side by side. */
 document.addEventListener("DOMContentLoaded", () => {
-  for (const figure of document.querySelectorAll("figure.course-figure")) {
+  const figures = document.querySelectorAll("figure.course-figure");
+  for (const [k, figure] of figures.entries()) {
     const img = figure.querySelector("img");
     if (!img) continue;
     const frame = document.createElement("div");
@@ -36,6 +39,7 @@ document.addEventListener("DOMContentLoaded", () => {
     button.type = "button";
     button.className = "course-figure-size";
     button.textContent = "Full size";
+    button.setAttribute("aria-label", `Full size, figure ${k + 1} of ${figures.length}`);
     button.setAttribute("aria-pressed", "false");
     button.addEventListener("click", () => {
       const full = figure.classList.toggle("full-size");
@@ -48,7 +52,7 @@ document.addEventListener("DOMContentLoaded", () => {
         for (const name of ["tabindex", "role", "aria-label"]) frame.removeAttribute(name);
       }
     });
-    frame.after(button);
+    frame.before(button);
     const drawn = Number(img.getAttribute("width"));
     const update = () => {
       button.hidden = !figure.classList.contains("full-size") && img.clientWidth >= drawn - 1;

@@ -155,9 +155,10 @@ FIGURE_SIZES_JS = r"""
 
 def test_a_figure_shrunk_on_a_phone_shows_at_full_size_from_the_keyboard(tab_page):
     """At 390 px a figure drawn for a 744 px column is shown half as wide, its tick labels about 3 px
-    tall. A "Full size" toggle under each shrunk figure shows it at the size it was drawn, in a
-    frame that scrolls sideways while the page does not (book/_static/course.js); at 1280 px,
-    where the figures fit, there is no such button."""
+    tall. A "Full size" toggle above each shrunk figure shows it at the size it was drawn, in a
+    frame that scrolls sideways while the page does not (book/_static/course.js), and Tab goes on
+    from the button into that frame; each button names its figure. At 1280 px, where the figures
+    fit, there is no such button."""
     require_site()
     tab = tab_page("notebooks/task1_single_joint", width=390)
     before = tab.evaluate(FIGURE_SIZES_JS)
@@ -169,6 +170,11 @@ def test_a_figure_shrunk_on_a_phone_shows_at_full_size_from_the_keyboard(tab_pag
     full = [f for f in after if f["button"] == "true"]
     assert len(full) == 1 and full[0]["shown"] == full[0]["drawn"] and full[0]["scrolls"], after
     assert full[0]["tabindex"] == 0 and all(f["page"] for f in after), after  # the page itself never scrolls sideways
+    tab.keyboard.press("Tab")  # from the button into its figure's frame, which scrolls with the arrow keys
+    assert tab.evaluate("() => document.activeElement.classList.contains('course-figure-frame')")
+    tab.keyboard.press("Shift+Tab")
+    names = tab.evaluate("() => [...document.querySelectorAll('button.course-figure-size')].map(b => b.ariaLabel)")
+    assert names == [f"Full size, figure {k} of {len(names)}" for k in range(1, len(names) + 1)], names
     tab.keyboard.press("Enter")
     assert tab.evaluate(FIGURE_SIZES_JS) == before
     wide = tab_page("notebooks/task1_single_joint").evaluate(FIGURE_SIZES_JS)
