@@ -61,3 +61,58 @@ document.addEventListener("DOMContentLoaded", () => {
     update();
   }
 });
+
+/* Search results (Sphinx 7.4's searchtools.js). Sphinx quotes 240 characters of a page's main
+   block around the first place its stemmed search words occur as written. That block opens with
+   the header's buttons, and a stem is seldom written so ("graviti" for "gravity"), so every
+   result quoted the header ("...Colab"), and a quote that did reach the text showed formulas as
+   their TeX source (\(mgr\cos\theta\)). Here the quote is taken from the article, around the
+   longest start of a search word that occurs in it, with its white space collapsed and each
+   formula's TeX read as text. */
+const TEX_SYMBOLS = {
+  alpha: "α", beta: "β", gamma: "γ", delta: "δ", epsilon: "ε", zeta: "ζ", eta: "η", theta: "θ",
+  lambda: "λ", mu: "μ", nu: "ν", pi: "π", rho: "ρ", sigma: "σ", tau: "τ", phi: "φ", omega: "ω",
+  Delta: "Δ", Lambda: "Λ", Omega: "Ω", cdot: "·", times: "×", approx: "≈", le: "≤", leq: "≤",
+  ge: "≥", geq: "≥", ne: "≠", to: "→", infty: "∞", int: "∫", sum: "∑", sqrt: "√", pm: "±",
+};
+const TEX_WORDS = new Set(["sin", "cos", "tan", "arccos", "arcsin", "arctan", "exp", "log", "ln", "det", "max", "min"]);
+
+/* One term of a fraction as text: in brackets unless it is a single symbol or word (k_v, \pi). */
+const texAtom = (term) => (/^\\?[A-Za-z0-9_.]+$/.test(term.trim()) ? term : `(${term})`);
+
+function texAsText(text) {
+  return text
+    .replace(/\\[()[\]]|\$\$?/g, " ")
+    .replace(/\\operatorname\{([^}]*)\}/g, " $1 ")
+    .replace(/\\[dt]?frac\{([^{}]*)\}\{([^{}]*)\}/g, (_, a, b) => `${texAtom(a)}/${texAtom(b)}`)
+    .replace(/\\([A-Za-z]+)/g, (_, name) => TEX_SYMBOLS[name] ?? (TEX_WORDS.has(name) ? ` ${name} ` : " "))
+    .replace(/\\./g, " ")
+    .replace(/[{}]/g, "")
+    .replace(/\s+/g, " ")
+    .trim();
+}
+
+document.addEventListener("DOMContentLoaded", () => {
+  if (typeof Search === "undefined") return;
+  Search.makeSearchSummary = (htmlText, keywords, anchor) => {
+    const page = new DOMParser().parseFromString(htmlText, "text/html");
+    page.querySelectorAll(".headerlink, script, style").forEach((el) => el.remove());
+    const block = (anchor && page.querySelector(`article ${anchor}`)) || page.querySelector("article");
+    if (!block) return null;
+    const text = texAsText(block.textContent);
+    const lower = text.toLowerCase();
+    let at = -1;
+    for (const word of keywords) {
+      for (let n = word.length; at < 0 && n >= Math.min(4, word.length); n--) {
+        at = lower.indexOf(word.slice(0, n).toLowerCase());
+      }
+      if (at >= 0) break;
+    }
+    const start = Math.max(at - 120, 0);
+    const summary = document.createElement("p");
+    summary.classList.add("context");
+    summary.textContent =
+      (start > 0 ? "…" : "") + text.substr(start, 240).trim() + (start + 240 < text.length ? "…" : "");
+    return summary;
+  };
+});

@@ -156,6 +156,24 @@ def test_one_search_field(tab_page, width):
     assert visible == 1, f"{visible} search fields visible at {width} px"
 
 
+@pytest.mark.parametrize(
+    ("query", "stem"), [("gravity", "gravit"), ("computed torque", "comput"), ("sinusoid", "sinusoid")]
+)
+def test_search_results_quote_the_text_around_the_word(tab_page, query, stem):
+    """Every result of a search quoted the page's header ("...Colab", "....md"): Sphinx looks for
+    the stemmed word ("graviti") as written, in a block that starts with the header's buttons.
+    The quotes come from the article now, around the word, with each formula's TeX read as text
+    (book/_static/course.js)."""
+    tab = tab_page("search")
+    tab.goto(f"{tab.url}?q={query}")
+    tab.wait_for_function("() => /Search finished/.test(document.querySelector('p.search-summary')?.textContent)")
+    quotes = tab.locator("ul.search p.context").all_text_contents()
+    assert len(quotes) >= 3, quotes
+    for quote in quotes:
+        assert stem in quote.lower() and len(quote) > 100, quote
+        assert not re.search(r"\\[a-zA-Z(\[]|\$\$", quote), f"TeX source in the quote: {quote}"
+
+
 #: The headings whose theme anchor ("#", hidden until hover or focus) sits below their text, on
 #: a line of its own: the reader sees an empty line under the heading.
 LONE_ANCHORS_JS = """() => {
