@@ -120,7 +120,8 @@ class SingleJoint:
 
         Args:
             torque: controller, called as ``torque(t, np.array([theta, theta_dot]))``; must
-                return a finite scalar [N·m].
+                return a finite scalar [N·m], and only read the state (a read-only array: a
+                law that writes into it is stopped, as on the MuJoCo arm).
             duration: simulated time [s] from t = 0.
             state0: initial ``(theta, theta_dot)``.
             dt: spacing of the returned samples [s] (the solver picks its own steps).
