@@ -124,8 +124,10 @@ def test_every_notebook_gets_a_row_whatever_the_case_of_its_extension(tmp_path, 
     ]
     assert "not graded (not .ipynb files): " + ", ".join(aside) in capsys.readouterr().err
     assert json.loads((tmp_path / "out" / "batch.json").read_text(encoding="utf-8"))["left_aside"] == aside
-    # a.ipynb and a.IPYNB share a stem: each keeps a feedback file of its own
+    # a.ipynb and a.IPYNB share a stem: each keeps a feedback file of its own, which its row names
     feedback = {p.name: p.read_text(encoding="utf-8") for p in (tmp_path / "out" / "feedback").iterdir()}
+    named = {file: row["feedback"] for file, row in _rows(tmp_path / "out").items()}
+    assert named == {"B.Ipynb": "feedback/B.txt", "a.IPYNB": "feedback/a.txt", "a.ipynb": "feedback/a-2.txt"}
     assert {name: text.splitlines()[0] for name, text in feedback.items()} == {
         "B.txt": "Feedback on B.Ipynb (Problem 1)",
         "a.txt": "Feedback on a.IPYNB (Problem 1)",

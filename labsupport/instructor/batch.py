@@ -9,10 +9,11 @@ Usage (from the repository root)::
 
 ``--problem NAME`` reads the autograder spec ``tests/autograder/NAME.json`` (or give
 ``--spec PATH``). Every ``*.ipynb`` in SUBMISSIONS (``.IPYNB`` too: any case) gets a row in
-``OUT/grades.csv`` (a score per check, the total, a status and a reason) and a
-``OUT/feedback/<file>.txt``, whatever the file does (an empty one is "unreadable", with a
-reason saying to ask for it again); the other files and the subfolders are named on stderr,
-left aside and listed in ``OUT/batch.json`` (a subfolder holding notebooks says how many).
+``OUT/grades.csv`` (a score per check, the total, a status, a reason and the row's feedback
+file) and a ``OUT/feedback/<file>.txt`` (the file's name less ``.ipynb``), whatever the file
+does (an empty one is "unreadable", with a reason saying to ask for it again); the other files
+and the subfolders are named on stderr, left aside and listed in ``OUT/batch.json`` (a
+subfolder holding notebooks says how many).
 ``OUT/batch.json`` also records the seed, the spec, the date and the versions, so that
 ``--seed`` reproduces every grade; ``OUT/rubric.md`` says how each check scores and what
 partial credit each mistake it names keeps (``OUT/rubric_canvas.csv``: the same, for Canvas);
@@ -424,13 +425,14 @@ def prepare_output(out: Path) -> None:
         ) from None
 
 
-def grades_csv(spec: dict, rows: list[dict], seed: int) -> str:
-    """The text of ``grades.csv``: a row per submission; an unscored row's score cells are blank."""
+def grades_csv(spec: dict, rows: list[dict], seed: int, feedback: dict[str, str]) -> str:
+    """The text of ``grades.csv``: a row per submission, ending with its feedback file (from
+    ``feedback``, :func:`feedback_names`); an unscored row's score cells are blank."""
     names = [c["name"] for c in spec["checks"]]
     maximum = sum(float(c["points"]) for c in spec["checks"])
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(["file", "problem", *names, "total", "max", "status", "reason", "seed"])
+    writer.writerow(["file", "problem", *names, "total", "max", "status", "reason", "seed", "feedback"])
     for row in rows:
         reason = "; ".join(clean_text(n) for n in row["notes"]) if row["notes"] else "all checks passed"
         if row["status"] in UNSCORED:  # no score at all, rather than a zero
@@ -438,7 +440,8 @@ def grades_csv(spec: dict, rows: list[dict], seed: int) -> str:
         else:
             scores = [row["scores"].get(n, 0.0) for n in names]
             cells = [f"{s:g}" for s in scores] + [f"{sum(scores):g}"]
-        writer.writerow([csv_cell(row["file"]), spec["problem"], *cells, f"{maximum:g}", row["status"], reason, seed])
+        file, status = csv_cell(row["file"]), row["status"]
+        writer.writerow([file, spec["problem"], *cells, f"{maximum:g}", status, reason, seed, feedback[row["file"]]])
     return buf.getvalue()
 
 
@@ -466,8 +469,10 @@ def _write_results(out: Path, spec: dict, rows: list[dict], record: dict, shared
     to ``out/previous/`` first, and what an even earlier one left there to ``previous/previous/``."""
     out = Path(out)
     keep_previous(out, BATCH_RESULTS, feedback="feedback")
-    atomic_write(out / "grades.csv", grades_csv(spec, rows, record["seed"]))
     names = feedback_names([row["file"] for row in rows])
+    atomic_write(
+        out / "grades.csv", grades_csv(spec, rows, record["seed"], {f: f"feedback/{n}" for f, n in names.items()})
+    )
     for row in rows:
         atomic_write(out / "feedback" / names[row["file"]], feedback_text(row["file"], spec, row))
     atomic_write(out / "batch.json", json.dumps(record, indent=2) + "\n")
