@@ -464,7 +464,8 @@ SCORING = {
         f"and False: the share of the {2 * N_TARGETS} solutions that put the tip within {IK_TOL * 1e3:g} mm "
         "of the target (by MuJoCo's forward kinematics), on the elbow side asked, with the pan facing the "
         f"target. After {MAX_TIMEOUTS} calls on one branch that do not return, that branch's other calls are not "
-        "made and count as wrong. A target out of reach that does not raise ValueError gets a remark, no deduction."
+        "made and count as wrong. Every solution on its target but on the other elbow branch (the two branches "
+        "swapped) earns half. A target out of reach that does not raise ValueError gets a remark, no deduction."
     ),
     "p1_pd": formula_scoring(with_jdot=False),
     "p1_ct": formula_scoring(with_jdot=False),
