@@ -80,9 +80,16 @@ const TEX_WORDS = new Set(["sin", "cos", "tan", "arccos", "arcsin", "arctan", "e
 /* One term of a fraction as text: in brackets unless it is a single symbol or word (k_v, \pi). */
 const texAtom = (term) => (/^\\?[A-Za-z0-9_.]+$/.test(term.trim()) ? term : `(${term})`);
 
+/* The combining marks that draw TeX's accents over the letter before them (θ̇, q̈, M̃, x̂). */
+const TEX_ACCENTS = { dot: "\u0307", ddot: "\u0308", tilde: "\u0303", hat: "\u0302" };
+
 function texAsText(text) {
   return text
-    .replace(/\\[()[\]]|\$\$?/g, " ")
+    .replace(/\\(begin|end)\{[^}]*\}/g, " ")
+    .replace(/\\(dot|ddot|tilde|hat)\s*\{([^{}]*)\}/g, (_, accent, base) => ` ${base}${TEX_ACCENTS[accent]}`)
+    .replace(/\\(dot|ddot|tilde|hat)(?:\s*(\\[A-Za-z]+)|\s+(\w))/g, (_, accent, command, letter) =>
+      ` ${command ?? letter}${TEX_ACCENTS[accent]}`)
+    .replace(/\\[()[\]]|\$\$?|&/g, " ")
     .replace(/\\operatorname\{([^}]*)\}/g, " $1 ")
     .replace(/\\[dt]?frac\{([^{}]*)\}\{([^{}]*)\}/g, (_, a, b) => `${texAtom(a)}/${texAtom(b)}`)
     .replace(/\\([A-Za-z]+)/g, (_, name) => TEX_SYMBOLS[name] ?? (TEX_WORDS.has(name) ? ` ${name} ` : " "))
@@ -97,9 +104,9 @@ document.addEventListener("DOMContentLoaded", () => {
   Search.makeSearchSummary = (htmlText, keywords, anchor) => {
     const page = new DOMParser().parseFromString(htmlText, "text/html");
     page.querySelectorAll(".headerlink, script, style").forEach((el) => el.remove());
-    const block = (anchor && page.querySelector(`article ${anchor}`)) || page.querySelector("article");
-    if (!block) return null;
-    const text = texAsText(block.textContent);
+    const block =
+      (anchor && page.querySelector(`article ${anchor}`)) || page.querySelector("article") || page.querySelector("main");
+    const text = block ? texAsText(block.textContent) : ""; // Sphinx appends what this returns: never null
     const lower = text.toLowerCase();
     let at = -1;
     for (const word of keywords) {
@@ -115,4 +122,25 @@ document.addEventListener("DOMContentLoaded", () => {
       (start > 0 ? "…" : "") + text.substr(start, 240).trim() + (start + 240 < text.length ? "…" : "");
     return summary;
   };
+});
+
+/* Search page and dialog, for screen readers and the keyboard. The line that says how the search
+   went ("Search finished, found 6 page(s) ...") is a status, read out when it changes; with no
+   result it no longer asks for "categories", which this book has none of. The page's own script
+   focused the first search field it found, the one hidden in the closed Ctrl+K dialog, so the
+   focus was nowhere: the page's own field takes it. The dialog is named. */
+document.addEventListener("DOMContentLoaded", () => {
+  document.getElementById("pst-search-dialog")?.setAttribute("aria-label", "Search this book");
+  const results = document.getElementById("search-results");
+  if (!results) return;
+  results.parentElement.querySelector("form.bd-search input")?.focus();
+  const tidy = () => {
+    const status = results.querySelector("p.search-summary");
+    if (!status) return;
+    status.setAttribute("role", "status");
+    if (/categories/.test(status.textContent)) {
+      status.textContent = "No page matches this search. Check the spelling, or try fewer or other words.";
+    }
+  };
+  new MutationObserver(tidy).observe(results, { childList: true, subtree: true, characterData: true });
 });

@@ -63,6 +63,31 @@ def test_page_meets_wcag21_aa(browser, server, axe, page, scheme):
     assert not violations, f"{page}: " + " | ".join(_describe(v) for v in violations)
 
 
+@pytest.mark.parametrize("scheme", ["light", "dark"])
+@pytest.mark.parametrize("query", ["computed torque", "ur5e", "nonsenseword"])
+def test_search_results_meet_wcag21_aa(browser, server, axe, query, scheme):
+    """The search page, with its results, is no page of the table of contents. In dark mode a word
+    highlighted in a result's title was link blue on olive, 2.1:1 (book/_static/course.css)."""
+    context = browser.new_context(viewport=VIEWPORT, color_scheme=scheme)
+    try:
+        tab = context.new_page()
+        tab.goto(f"{server}/search.html?q={query}", wait_until="load")
+        tab.wait_for_function(
+            "() => /Search finished|No page matches/.test(document.querySelector('p.search-summary')?.textContent)"
+        )
+        # the quotes, and the words highlighted in them and in the titles, come once each page is fetched
+        tab.wait_for_function(
+            "() => [...document.querySelectorAll('ul.search > li')].every(li => li.querySelector('p.context'))"
+        )
+        tab.wait_for_function("scheme => document.documentElement.dataset.theme === scheme", arg=scheme)
+        tab.add_style_tag(content="*, *::before, *::after { transition: none !important; }")
+        results = axe.run(tab, options=AXE_OPTIONS)
+    finally:
+        context.close()
+    violations = results.response["violations"]
+    assert not violations, f"search {query!r} ({scheme}): " + " | ".join(_describe(v) for v in violations)
+
+
 def test_the_root_page_is_a_whole_page_for_a_reader_whose_browser_stays_on_it(browser, server, axe):
     """The site's root ``index.html`` sends the browser on to the first page. Where the browser
     does not follow such a redirect (a reader may turn them off), the page itself shows: in the

@@ -167,11 +167,38 @@ def test_search_results_quote_the_text_around_the_word(tab_page, query, stem):
     tab = tab_page("search")
     tab.goto(f"{tab.url}?q={query}")
     tab.wait_for_function("() => /Search finished/.test(document.querySelector('p.search-summary')?.textContent)")
+    # each result's quote comes once its page is fetched, after the status line says "finished"
+    tab.wait_for_function(
+        "() => [...document.querySelectorAll('ul.search > li')].every(li => li.querySelector('p.context'))"
+    )
     quotes = tab.locator("ul.search p.context").all_text_contents()
     assert len(quotes) >= 3, quotes
     for quote in quotes:
         assert stem in quote.lower() and len(quote) > 100, quote
-        assert not re.search(r"\\[a-zA-Z(\[]|\$\$", quote), f"TeX source in the quote: {quote}"
+        assert not re.search(r"\\[a-zA-Z(\[]|\$\$|&|\b(aligned|split|bmatrix)\b", quote), f"TeX in the quote: {quote}"
+    # for a screen reader: how the search went is a status; the focus is in the page's search field
+    assert tab.get_attribute("p.search-summary", "role") == "status"
+    assert tab.evaluate(
+        "() => document.activeElement.closest('dialog') === null && document.activeElement.name === 'q'"
+    )
+    assert tab.get_attribute("#pst-search-dialog", "aria-label") == "Search this book"
+
+
+def test_formulas_in_search_quotes_read_as_text(tab_page):
+    """Accents were dropped (h(θ, θ̇) read h(θ, θ)) and environments' names and & signs left in."""
+    tab = tab_page("search")
+    said = tab.evaluate(
+        "() => [texAsText('\\\\(\\\\tau = M\\\\ddot\\\\theta + h(\\\\theta,\\\\dot{\\\\theta})\\\\)'), "
+        "texAsText('\\\\begin{aligned} x &= \\\\frac{\\\\pi}{4} \\\\end{aligned}')]"
+    )
+    assert said == ["τ = M θ̈ + h(θ, θ̇)", "x = π/4"], said
+
+
+def test_a_search_that_finds_nothing_says_so_without_categories(tab_page):
+    tab = tab_page("search")
+    tab.goto(f"{tab.url}?q=nonsenseword")
+    tab.wait_for_function("() => /No page matches/.test(document.querySelector('p.search-summary')?.textContent)")
+    assert "categories" not in tab.inner_text("#search-results")
 
 
 #: The headings whose theme anchor ("#", hidden until hover or focus) sits below their text, on
