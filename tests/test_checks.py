@@ -1115,6 +1115,15 @@ def test_the_over_the_top_ik_is_named_in_both_problems(master1):
 
     p2 = grade("p2_ikct", OTHER_SEED, ct_ik_joint_torque=ct_ik_joint_torque)
     assert p2.score == 0 and "the IK returns the over-the-top solution" in p2.message, p2
+    assert "other side" not in p2.message
+    # leaning back with the elbow on the other side too (a warm-started Newton IK can land there):
+    # it got the bare "the torque differs" advice
+
+    def ct_ik_other_elbow(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        return ik_ct_law(model, data, x_d, xd_d, xdd_d, Kp, Kd, ik=lambda x, elbow_up=True: ik(x, not elbow_up))
+
+    p2 = grade("p2_ikct", OTHER_SEED, ct_ik_joint_torque=ct_ik_other_elbow)
+    assert p2.score == 0 and "over-the-top solution" in p2.message and "with the elbow on the other side" in p2.message
     start = grade("p2_start", q0_traj=ik(problem2.reference(0.0).pos, elbow_up=True))
     assert start.score == 0.5 and "the over-the-top pose" in start.message, start
 
@@ -3031,14 +3040,14 @@ def test_the_angular_rows_of_the_jacobian_are_named_by_the_singular_hint(master2
 
 
 def test_an_ik_on_another_branch_is_shown_by_the_ik_ct_check(master2, monkeypatch):
-    """A numerical IK that wanders to another branch (here over the top, elbow down and a turn
-    off, a combination no named mistake covers) gave only "the torque differs … check q_d =
-    IK(x_d)". The check now shows what the student's IK gives beside the elbow-up answer."""
+    """A numerical IK that wanders off (over the top, elbow down and a turn off was such a case,
+    until that branch was named too; here a pose beside the target, which no named mistake
+    covers) gave only "the torque differs … check q_d = IK(x_d)". The check now shows what the
+    student's IK gives beside the elbow-up answer."""
     ik = master2["ik_3r"]
 
-    def wandering(x, elbow_up=True):  # the elbow-down pose with the pan half a turn round, q2 a turn off
-        q1, q2, q3 = ik(x, not elbow_up)
-        return np.array([q1 + np.pi, -q2 + 2 * np.pi, -q3 - np.pi])
+    def wandering(x, elbow_up=True):  # stopped short of the target
+        return ik(x, elbow_up) + np.array([0.0, 0.05, -0.03])
 
     monkeypatch.setitem(master2, "ik_3r", wandering)  # the law's own IK too: it calls ik_3r
     result = grade("p2_ikct", ik_3r=wandering, ct_ik_joint_torque=master2["ct_ik_joint_torque"])

@@ -299,7 +299,7 @@ def judge_torque(
         with np.printoptions(precision=4, suppress=True):
             text = (
                 f"your torque differs from the formula's as a different J̇q̇ would make it: it implies "
-                f"J̇q̇ ≈ {implied_jdq(got)}, MuJoCo's is {jdq} (off by {100 * eps:.0f} %). An approximation "
+                f"J̇q̇ ≈ {implied_jdq(got)}, MuJoCo's is {jdq} (off by {100 * eps:.2g} %). An approximation "
                 f"of J̇q̇ within {100 * JDOT_APPROX:g} % gets full marks; if yours is exact, look at the other "
                 "terms that depend on the velocities (the Coriolis part of h, the reference's velocity)"
             )

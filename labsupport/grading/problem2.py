@@ -373,8 +373,9 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
     qd_now = np.linalg.solve(T.J, xd_d)
     q_down = mirror_elbow(q_d)
     qd_down, qdd_down = _joint_reference_terms(model, q_down, xd_d, xdd_d)
-    q_top = over_the_top(q_d)
-    qd_top, qdd_top = _joint_reference_terms(model, q_top, xd_d, xdd_d)
+    tops = []  # leaning back over the shoulder, with either elbow
+    for q_top in (over_the_top(q_d), over_the_top(q_down)):
+        tops.append((q_top, *_joint_reference_terms(model, q_top, xd_d, xdd_d)))
     # The same pose with some angle a full turn away: the IK is right as kinematics, but joint-space
     # control then drives that joint a full turn (q_d - q is off by 2π).
     shifts = [np.array(k) for k in itertools.product((-1, 0, 1), repeat=3)]
@@ -482,12 +483,14 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
         ),
         **unwrapped,
         **{  # whatever full turns the IK adds to it
-            f"over_the_top_{i}": Mistake(
+            f"over_the_top{'_other_elbow' if j else ''}_{i}": Mistake(
                 law(qdd_top, qd=qd_top, qq=q_top + 2 * np.pi * k),
-                f"the IK returns {OVER_THE_TOP}, while the arm runs facing the target, so the joint CT swings "
-                "it half a turn round: take q1 = atan2(y, x).",
+                f"the IK returns {OVER_THE_TOP}{', with the elbow on the other side' if j else ''}, while the "
+                "arm runs facing the target, so the joint CT swings it half a turn round: take q1 = atan2(y, x)"
+                + (" and the elbow-up branch." if j else "."),
                 0.0,
             )
+            for j, (q_top, qd_top, qdd_top) in enumerate(tops)
             for i, k in enumerate(shifts)
         },
     }
