@@ -3122,3 +3122,23 @@ def test_a_tracking_run_sent_away_by_an_ik_in_degrees_is_told_so(master2, monkey
     assert "at the circle's start, angles beyond 3π, where no joint angle in radians needs to be: are they in" in (
         result.message
     ), result
+
+
+def test_a_bias_term_from_mj_rne_with_the_acceleration_is_told_why_it_is_missing():
+    """``mj_rne(model, data, 1, h)`` adds M q̈ to h, and at the checks' states (the arm left to
+    itself) that cancels h: the law was told its bias term is missing, though it has one."""
+
+    def ct_joint_torque(model, data, q_d, Kp, Kd):
+        h = np.zeros(model.nv)
+        mujoco.mj_rne(model, data, 1, h)
+        return mass_matrix(model, data) @ (Kp * (q_d - data.qpos) - Kd * data.qvel) + h
+
+    result = grade("p1_ct", ct_joint_torque=ct_joint_torque)
+    assert result.score == 0.25 and "is missing" in result.message and common.ZERO_BIAS_NOTE in result.message
+
+    def fixed(model, data, q_d, Kp, Kd):
+        h = np.zeros(model.nv)
+        mujoco.mj_rne(model, data, 0, h)
+        return mass_matrix(model, data) @ (Kp * (q_d - data.qpos) - Kd * data.qvel) + h
+
+    assert grade("p1_ct", ct_joint_torque=fixed).score == 1.0

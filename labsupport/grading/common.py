@@ -43,6 +43,12 @@ GRAVITY_ONLY = (
     "the bias term holds gravity alone; h(q, q̇) = data.qfrc_bias also holds the Coriolis and "
     "centrifugal forces, which grow with the speed (gravity alone is h only at rest)"
 )
+#: Said where a law's bias term is missing: one from mj_rne with flg_acc=1 comes out as zero at the
+#: checks' states (both Problems).
+ZERO_BIAS_NOTE = (
+    " (A bias term from mujoco.mj_rne with flg_acc=1 comes out as zero here: it adds M q̈, the "
+    "acceleration of the arm left to itself, which cancels h; use flg_acc=0, or data.qfrc_bias.)"
+)
 #: A J̇q̇ approximated within this fraction of its size (finite differences) still counts as exact.
 JDOT_APPROX = 0.05
 #: Where the law's J̇q̇ term vanishes, the torque matches the formula within this fraction of its

@@ -25,6 +25,7 @@ import numpy as np
 from labsupport.grading.common import (
     GRAVITY_ONLY,
     INVERSE_MASS,
+    ZERO_BIAS_NOTE,
     Mistake,
     argument_order_mistakes,
     arm_model,
@@ -360,7 +361,8 @@ def _ct_mistakes(T, state, q_d, Kp, Kd):
     return {
         "no_bias": Mistake(
             M @ v,
-            "M(q)(Kp e − Kd q̇) is right, but the bias term h(q, q̇) (data.qfrc_bias: gravity and Coriolis) is missing.",
+            "M(q)(Kp e − Kd q̇) is right, but the bias term h(q, q̇) (data.qfrc_bias: gravity and Coriolis) is missing."
+            + ZERO_BIAS_NOTE,
             0.25,
         ),
         "no_mass": Mistake(

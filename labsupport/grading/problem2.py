@@ -30,6 +30,7 @@ from labsupport.grading.common import (
     MARGINS,
     RAN_AWAY,
     STILL_RTOL,
+    ZERO_BIAS_NOTE,
     Case,
     Mistake,
     Verdict,
@@ -100,6 +101,9 @@ TRACK_DURATION = 1 / FREQUENCY
 BRANCH_ADVICE = " Take q1 = atan2(y, x) and the elbow-up branch at every point"
 #: Where to look when a value computed from the student's IK is None.
 IK_NOT_PASTED = "check TODO 1 first: ik_3r returns None until your ik_3r from Problem 1 is pasted there"
+#: A law without its bias term (both laws).
+NO_BIAS = "the bias term h(q, q̇) = data.qfrc_bias is missing." + ZERO_BIAS_NOTE
+
 OVER_THE_TOP = (
     "the over-the-top solution: it reaches x_d with the pan angle half a turn from atan2(y, x) and the "
     "arm leaning back over its shoulder"
@@ -251,7 +255,7 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
             "still tracks.",
             0.75,
         ),
-        "no_bias": Mistake(law(xdd_d + fb - jdq) - h, "the bias term h(q, q̇) = data.qfrc_bias is missing.", 0.25),
+        "no_bias": Mistake(law(xdd_d + fb - jdq) - h, NO_BIAS, 0.25),
         "bias_sign": Mistake(law(xdd_d + fb - jdq) - 2 * h, "h(q, q̇) must be added, not subtracted.", 0.25),
         "gravity_only": Mistake(law(xdd_d + fb - jdq) - h + g, GRAVITY_ONLY, 0.5),
         "no_mass": Mistake(
@@ -404,7 +408,7 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
             "J̇(q_d, q̇_d) q̇_d must be subtracted: ẍ_d = J q̈_d + J̇q̇_d, so q̈_d = J(q_d)⁻¹(ẍ_d − J̇q̇_d).",
             0.25,
         ),
-        "no_bias": Mistake(M @ (qdd_d + fb), "the bias term h(q, q̇) = data.qfrc_bias is missing.", 0.25),
+        "no_bias": Mistake(M @ (qdd_d + fb), NO_BIAS, 0.25),
         "bias_sign": Mistake(M @ (qdd_d + fb) - h, "h(q, q̇) must be added, not subtracted.", 0.25),
         "gravity_only": Mistake(M @ (qdd_d + fb) + gravity(model, q), GRAVITY_ONLY, 0.5),
         "no_damping": Mistake(
