@@ -40,24 +40,40 @@ def _describe(violation: dict) -> str:
     return f"{violation['id']} [{violation.get('impact')}]: {violation['help']} at {where}{more}"
 
 
-@pytest.mark.parametrize("scheme", ["light", "dark"])
-@pytest.mark.parametrize("page", toc_pages())
-def test_page_meets_wcag21_aa(browser, server, axe, page, scheme):
-    """In the reader's colour scheme: the site follows the system's light or dark mode."""
+#: What the search page has done once it is ready for axe: said how the search went, and shown
+#: each result's quote (the quotes, and the words highlighted in them and in the titles, come once
+#: each result's page is fetched).
+SEARCH_DONE = (
+    "() => /Search finished|No page matches/.test(document.querySelector('p.search-summary')?.textContent)"
+    " && [...document.querySelectorAll('ul.search > li')].every(li => li.querySelector('p.context'))"
+)
+
+
+def axe_violations(browser, server, axe, url: str, scheme: str, ready: str | None = None) -> list[dict]:
+    """axe's WCAG violations on ``url`` (under the site's root) in the colour ``scheme``, once the
+    page's formulas are typeset and the JavaScript condition ``ready`` holds, if given."""
     context = browser.new_context(viewport=VIEWPORT, color_scheme=scheme)
     try:
         tab = context.new_page()
         tab.route("**/*", lambda route, request: route.continue_() if request.url.startswith(server) else route.abort())
-        tab.goto(f"{server}/{page}.html", wait_until="load")
+        tab.goto(f"{server}/{url}", wait_until="load")
         tab.evaluate("async () => { if (window.MathJax?.startup?.promise) await MathJax.startup.promise; }")
+        if ready:
+            tab.wait_for_function(ready)
         # The theme applies the colour scheme by script after loading, and its buttons fade
         # their colours over 0.15 s: axe must see the end state, not a frame of the fade.
         tab.wait_for_function("scheme => document.documentElement.dataset.theme === scheme", arg=scheme)
         tab.add_style_tag(content="*, *::before, *::after { transition: none !important; }")
-        results = axe.run(tab, options=AXE_OPTIONS)
+        return axe.run(tab, options=AXE_OPTIONS).response["violations"]
     finally:
         context.close()
-    violations = results.response["violations"]
+
+
+@pytest.mark.parametrize("scheme", ["light", "dark"])
+@pytest.mark.parametrize("page", toc_pages())
+def test_page_meets_wcag21_aa(browser, server, axe, page, scheme):
+    """In the reader's colour scheme: the site follows the system's light or dark mode."""
+    violations = axe_violations(browser, server, axe, f"{page}.html", scheme)
     dump_json(f"axe__{page.replace('/', '__')}__{scheme}.json", violations)
     SUMMARY.append(f"axe WCAG 2.1 AA {page} ({scheme}): {len(violations)} violations")
     assert not violations, f"{page}: " + " | ".join(_describe(v) for v in violations)
@@ -68,23 +84,7 @@ def test_page_meets_wcag21_aa(browser, server, axe, page, scheme):
 def test_search_results_meet_wcag21_aa(browser, server, axe, query, scheme):
     """The search page, with its results, is no page of the table of contents. In dark mode a word
     highlighted in a result's title was link blue on olive, 2.1:1 (book/_static/course.css)."""
-    context = browser.new_context(viewport=VIEWPORT, color_scheme=scheme)
-    try:
-        tab = context.new_page()
-        tab.goto(f"{server}/search.html?q={query}", wait_until="load")
-        tab.wait_for_function(
-            "() => /Search finished|No page matches/.test(document.querySelector('p.search-summary')?.textContent)"
-        )
-        # the quotes, and the words highlighted in them and in the titles, come once each page is fetched
-        tab.wait_for_function(
-            "() => [...document.querySelectorAll('ul.search > li')].every(li => li.querySelector('p.context'))"
-        )
-        tab.wait_for_function("scheme => document.documentElement.dataset.theme === scheme", arg=scheme)
-        tab.add_style_tag(content="*, *::before, *::after { transition: none !important; }")
-        results = axe.run(tab, options=AXE_OPTIONS)
-    finally:
-        context.close()
-    violations = results.response["violations"]
+    violations = axe_violations(browser, server, axe, f"search.html?q={query}", scheme, ready=SEARCH_DONE)
     assert not violations, f"search {query!r} ({scheme}): " + " | ".join(_describe(v) for v in violations)
 
 
