@@ -159,44 +159,33 @@ class SingleJoint:
         validate.function("torque", torque, "a function torque(t, state) -> float, state = (theta, theta_dot)")
 
         def checked_torque(t, x):
+            """The law's torque at ``(t, x)`` as a float, or a ``ValueError`` that says what is wrong."""
             state = x.copy()  # the solver's own state stays its own,
             state.flags.writeable = False  # and a law only reads it, as on the MuJoCo arm
             try:
                 tau = torque(t, state)
             except (TypeError, AttributeError) as err:
-                raise _RunEnded(
-                    ValueError(
-                        f"the torque function raised {type(err).__name__} at t = {t:.4f} s: {err}"
-                        f"{_torque_error_hint(err)}"
-                    )
+                raise ValueError(
+                    f"the torque function raised {type(err).__name__} at t = {t:.4f} s: {err}{_torque_error_hint(err)}"
                 ) from err
             except ValueError as err:
                 if "read-only" not in str(err):
                     raise
-                raise _RunEnded(
-                    ValueError(
-                        f"the torque function wrote into the state it is handed at t = {t:.4f} s; {STATE_ONLY_READ}"
-                    )
+                raise ValueError(
+                    f"the torque function wrote into the state it is handed at t = {t:.4f} s; {STATE_ONLY_READ}"
                 ) from err
             if tau is None:
-                raise _RunEnded(ValueError(f"the torque function returned None at t = {t:.4f} s"))
+                raise ValueError(f"the torque function returned None at t = {t:.4f} s")
             if isinstance(tau, (str, bytes)):  # NumPy would read "1" as 1 N·m
-                raise _RunEnded(
-                    ValueError(f"the torque function returned the text {tau!r} at t = {t:.4f} s, not a number")
-                )
-            try:
-                validate.real(f"the torque function (at t = {t:.4f} s) returned", tau)
-            except ValueError as err:
-                raise _RunEnded(err) from None
+                raise ValueError(f"the torque function returned the text {tau!r} at t = {t:.4f} s, not a number")
+            validate.real(f"the torque function (at t = {t:.4f} s) returned", tau)
             tau_arr = np.asarray(tau, dtype=float)
             if tau_arr.size != 1:
                 whole = f"; three numbers: {validate.REFERENCE_WHOLE}" if tau_arr.size == 3 else ""
-                raise _RunEnded(ValueError(f"tau must be a scalar, got shape {tau_arr.shape} at t = {t:.4f} s{whole}"))
+                raise ValueError(f"tau must be a scalar, got shape {tau_arr.shape} at t = {t:.4f} s{whole}")
             tau = float(tau_arr.reshape(()))
             if not np.isfinite(tau):
-                raise _RunEnded(
-                    ValueError(f"tau is {tau} (not finite) at t = {t:.4f} s, state = {x}. {NOT_A_NUMBER_ADVICE}")
-                )
+                raise ValueError(f"tau is {tau} (not finite) at t = {t:.4f} s, state = {x}. {NOT_A_NUMBER_ADVICE}")
             return tau
 
         evaluations = 0
@@ -212,7 +201,11 @@ class SingleJoint:
                         f"arm's scale (M = {self.M:g} kg·m²). Lower the gains, or check the law for a sign error."
                     )
                 )
-            return (x[1], self.acceleration(x[0], x[1], checked_torque(t, x)))
+            try:
+                tau = checked_torque(t, x)
+            except ValueError as err:
+                raise _RunEnded(err) from None
+            return (x[1], self.acceleration(x[0], x[1], tau))
 
         def runaway(t, x):  # crosses zero where the joint turns at RUNAWAY_SPEED
             return RUNAWAY_SPEED - abs(x[1])

@@ -271,7 +271,8 @@ def test_a_torque_function_that_writes_into_its_state_is_stopped_as_on_the_mujoc
         ValueError, match=r"wrote into the state it is handed at t = 0.0000 s; .*state.copy\(\)"
     ) as caught:
         SingleJoint().simulate(writes, 0.1, state0=(0.5, 0.0))
-    assert [frame.name for frame in traceback.extract_tb(caught.tb)][-1] == "simulate"
+    frames = traceback.extract_tb(caught.tb)  # from simulate, not from inside SciPy's solver
+    assert "simulate" in [f.name for f in frames] and not any("scipy" in f.filename for f in frames)
 
     def copies(t, state):
         error = state.copy()

@@ -242,6 +242,9 @@ def test_gains_too_stiff_for_rk45_are_named_instead_of_running_for_minutes(monke
         SingleJoint().simulate(stiff, 1.0, state0=(0.1, 0.0))
     # raised by simulate itself, not from inside SciPy's solver: the student's call, then simulate
     assert [frame.name for frame in traceback.extract_tb(caught.tb)][-1] == "simulate"
+    with pytest.raises(ValueError, match="returned None") as caught:  # a check of the law's torque
+        SingleJoint().simulate(lambda t, x: None, 1.0)
+    assert not any("scipy" in frame.filename for frame in traceback.extract_tb(caught.tb))
     log = SingleJoint().simulate(lambda t, x: 5.72 * (np.pi / 2 - x[0]) - 1.9 * x[1], 10.0)  # the lab's gains
     assert log.q[-1, 0] == pytest.approx(np.pi / 2, abs=1e-3)
     for tolerances in ({"atol": np.nan}, {"rtol": np.inf}, {"rtol": 0.0}):  # NaN and inf never returned
