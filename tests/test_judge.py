@@ -236,6 +236,9 @@ def test_an_unreadable_notebook_scores_zero_on_every_check_without_a_sandbox(che
     assert reason.startswith("not a notebook: a notebook (.ipynb) is JSON text that starts with {, and this file ")
     assert "starts with 'this is not a notebook' (a Python file renamed" in reason and judge.DOWNLOAD_AGAIN in reason
     assert row["notes"] == [reason] and row["messages"] == {"c_double": judge.UNREADABLE, "c_half": judge.UNREADABLE}
+    for blank in (b"   \n", b"\xef\xbb\xbf"):  # white space, or a byte-order mark alone: an IndexError once
+        said = judge.grade(spec(c_double=2, c_half=1), blank, SEED, no_sandbox)
+        assert said["status"] == "unreadable" and said["notes"][0].startswith("not a notebook: the file holds nothing")
     cut = judge.grade(spec(c_double=2, c_half=1), b'{"cells": [', SEED, no_sandbox)["notes"][0]
     assert cut.startswith("not a valid notebook: invalid JSON (Expecting value at line 1), cut short or edited; open")
 

@@ -561,6 +561,8 @@ def _not_json(text: str, err: json.JSONDecodeError) -> str:
     if start.startswith("{"):
         where = f"{err.msg} at line {err.lineno}"
         return f"not a valid notebook: invalid JSON ({where}), cut short or edited; {DOWNLOAD_AGAIN}"
+    if not start:
+        return f"not a notebook: the file holds nothing but white space; {DOWNLOAD_AGAIN}"
     first = start.splitlines()[0][:60]
     return (
         f"not a notebook: a notebook (.ipynb) is JSON text that starts with {{, and this file starts with "
