@@ -79,7 +79,7 @@ def _with_a_third_joint(log: sim.Log) -> sim.Log:
 def test_reaching_figure_names_a_bad_q_d_reach_or_arm():
     runs = _planar_runs()
     target = k2.sample_annulus(np.random.default_rng(42), ARM, margin=0.05)
-    q_d = k2.inverse_kinematics(target, ARM, branch="up")
+    q_d = k2.inverse_kinematics(target, ARM, elbow_up=True)
     fig = plots.reaching_figure(runs, q_d, target, (ARM.reach_min, ARM.reach_max))  # as Task 3 calls it
     assert len(fig.axes) == 6
     (path,) = [ax for ax in fig.axes if ax.get_title() == "end-effector path"]

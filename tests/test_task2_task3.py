@@ -166,7 +166,7 @@ def test_task2_try_it_predictions_hold():
 def reaching_runs():
     model, data = load_model("planar_2r")
     target = k2.sample_annulus(np.random.default_rng(42))
-    q_d = k2.inverse_kinematics(target, branch="up")
+    q_d = k2.inverse_kinematics(target, elbow_up=True)
     Kp, Kd = gains.ct_gains(REACH["wn_ct"], REACH["zeta_ct"])
     runs, rest = {}, np.zeros(2)
     for name, ctrl in (
@@ -271,7 +271,7 @@ def ik_ct(model, Kp, Kd, duration=TRACK["T_track"]):
 
 def tracking_run(make, start_on_path=False, log_after_step=True, duration=TRACK["T_track"], wn=TRACK["wn"]):
     model, data = load_model("planar_2r")
-    q0 = k2.inverse_kinematics(CIRCLE(0.0).pos, branch="up")
+    q0 = k2.inverse_kinematics(CIRCLE(0.0).pos, elbow_up=True)
     qdot0 = np.linalg.solve(k2.jacobian(q0), CIRCLE(0.0).vel) if start_on_path else np.zeros(2)
     Kp, Kd = gains.ct_gains(wn, TRACK["zeta"])
     return sim.simulate(

@@ -10,9 +10,9 @@ link lengths :math:`l_1, l_2`. With :math:`c_1 = \cos q_1`,
 Every function takes arrays whose last axis holds the two components, so a whole
 trajectory ``(N, 2)`` goes through one call.
 
-The two inverse-kinematics branches are named as in the lab: ``"up"`` is
-:math:`q_2 = +\arccos D \ge 0` (the lab's ``elbow_up=True``), ``"down"`` is
-:math:`q_2 \le 0`. The names follow the lab, not the picture:
+The two inverse-kinematics branches are named as in the lab, and as the Problems'
+3R arm names them: ``elbow_up=True`` is :math:`q_2 = +\arccos D \ge 0`,
+``elbow_up=False`` is :math:`q_2 \le 0`. The name follows the lab, not the picture:
 :math:`q_2 > 0` puts the elbow clockwise of the line from the base to the
 target, below it (with :math:`y` up) for a target in front of the arm.
 """
@@ -26,8 +26,6 @@ import numpy as np
 
 from labsupport import validate
 from labsupport.trajectories import Reference
-
-BRANCHES = ("up", "down")
 
 
 @dataclass(frozen=True)
@@ -206,7 +204,7 @@ def is_reachable(x, arm: Planar2R = LAB_ARM) -> np.ndarray:
 
 
 def inverse_kinematics(
-    x, arm: Planar2R = LAB_ARM, branch: str = "up", clip: bool = False
+    x, arm: Planar2R = LAB_ARM, elbow_up: bool = True, clip: bool = False
 ) -> np.ndarray:
     r"""Joint angles that put the end effector at ``x``, shape ``(..., 2)``:
 
@@ -215,11 +213,11 @@ def inverse_kinematics(
         q_1 = \operatorname{atan2}(y, x)
               - \operatorname{atan2}(l_2 \sin q_2,\; l_1 + l_2\cos q_2)
 
-    with :math:`+` for ``branch="up"`` and :math:`-` for ``"down"``.
+    with :math:`+` for ``elbow_up=True`` and :math:`-` for ``elbow_up=False``.
 
     Args:
         x: target(s), shape ``(..., 2)``.
-        branch: ``"up"`` (:math:`q_2 \ge 0`) or ``"down"`` (:math:`q_2 \le 0`).
+        elbow_up: ``True`` (:math:`q_2 \ge 0`) or ``False`` (:math:`q_2 \le 0`).
         clip: a target outside the annulus raises ``ValueError`` by default. With
             ``clip=True`` it is moved radially onto the nearest workspace boundary
             instead (``|D|`` clipped to 1, as the lab's code does silently), and a
@@ -229,15 +227,14 @@ def inverse_kinematics(
     takes each back there.
 
     >>> x = np.array([0.5, 0.2])
-    >>> q_up, q_down = inverse_kinematics(x), inverse_kinematics(x, branch="down")
+    >>> q_up, q_down = inverse_kinematics(x), inverse_kinematics(x, elbow_up=False)
     >>> print(np.round(q_up, 4), np.round(q_down, 4))
     [-0.407   1.8755] [ 1.168  -1.8755]
     >>> back = forward_kinematics(np.stack([q_up, q_down]))
     >>> print(np.allclose(back, x))
     True
     """
-    if branch not in BRANCHES:
-        raise ValueError(f"branch must be one of {BRANCHES}, got {branch!r}")
+    elbow_up = validate.flag("elbow_up", elbow_up)
     clip = validate.flag("clip", clip)
     x = _q(x, "x")
     D = elbow_cosine(x, arm)
@@ -259,7 +256,7 @@ def inverse_kinematics(
             stacklevel=2,
         )
     D = np.clip(D, -1.0, 1.0)
-    q2 = np.arccos(D) if branch == "up" else -np.arccos(D)
+    q2 = np.arccos(D) if elbow_up else -np.arccos(D)
     q1 = np.arctan2(x[..., 1], x[..., 0]) - np.arctan2(
         arm.l2 * np.sin(q2), arm.l1 + arm.l2 * np.cos(q2)
     )
@@ -288,7 +285,7 @@ def _path(ref) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def joint_reference(
     ref: Reference,
     arm: Planar2R = LAB_ARM,
-    branch: str = "up",
+    elbow_up: bool = True,
     min_det: float = 1e-6,
 ) -> Reference:
     r"""Turn a Cartesian reference :math:`(x_d, \dot x_d, \ddot x_d)` into a joint
@@ -298,6 +295,7 @@ def joint_reference(
         q_d &= \mathrm{IK}(x_d),\qquad \dot q_d = J(q_d)^{-1}\dot x_d,\\
         \ddot q_d &= J(q_d)^{-1}\big(\ddot x_d - \dot J(q_d,\dot q_d)\,\dot q_d\big)
 
+    ``elbow_up`` picks the IK branch, as in :func:`inverse_kinematics`.
     Works on one instant ``(2,)`` or a whole trajectory ``(N, 2)``. Raises
     ``ValueError`` if the path reaches a singular configuration
     (:math:`|\det J| <` ``min_det`` > 0, in m²: arm stretched or folded; on the lab's
@@ -306,7 +304,7 @@ def joint_reference(
     """
     min_det = validate.number("min_det", min_det, positive=True)
     x, xdot, xddot = _path(ref)
-    q = inverse_kinematics(x, arm, branch)
+    q = inverse_kinematics(x, arm, elbow_up)
     J = jacobian(q, arm)
     det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
     if np.any(np.abs(det) < min_det):

@@ -142,7 +142,7 @@ vandalise()
 BORROWED_IK = """def ik_3r(x, elbow_up=True):
     from labsupport.kinematics.planar_2r import Planar2R, inverse_kinematics
     rho, h = np.hypot(x[0], x[1]), x[2] - 1.0
-    q2, theta = inverse_kinematics(np.array([h, rho]), Planar2R(1.0, 1.0), "up" if elbow_up else "down")
+    q2, theta = inverse_kinematics(np.array([h, rho]), Planar2R(1.0, 1.0), elbow_up)
     return np.array([np.arctan2(x[1], x[0]), q2, theta - np.pi / 2])"""
 
 #: TODO 3 through Task 3's generic joint computed torque: the right torque, off limits.
@@ -170,7 +170,7 @@ HIDDEN_IK = """def ik_3r(x, elbow_up=True):
     out = {}
     def work():
         rho, h = np.hypot(x[0], x[1]), x[2] - 1.0
-        out["q"] = inverse_kinematics(np.array([h, rho]), Planar2R(1.0, 1.0), "up" if elbow_up else "down")
+        out["q"] = inverse_kinematics(np.array([h, rho]), Planar2R(1.0, 1.0), elbow_up)
     worker = threading.Thread(target=work)
     worker.start()
     worker.join()
