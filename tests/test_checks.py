@@ -690,18 +690,19 @@ def gravity_at(model, q):
     return d.qfrc_bias.copy()
 
 
-def os_variant(kp=1.0, kd=1.0, ff=1.0, mass=lambda M: M, bias=lambda model, data: bias_forces(data)):
-    """OS-CT with one term changed: a gain or the feed-forward scaled, M or h replaced."""
+def os_variant(kp=1.0, kd=1.0, ff=1.0, vel=1.0, mass=lambda M: M, bias=lambda model, data: bias_forces(data)):
+    """OS-CT with one term changed: a gain, the feed-forward or the damping's reference velocity
+    scaled, M or h replaced."""
 
     def ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
         J, jdq = site_jacobian(model, data, SITE)[:3], site_jdot_qdot(model, data, SITE)[:3]
-        a = ff * xdd_d + kd * Kd * (xd_d - J @ data.qvel) + kp * Kp * (x_d - data.site(SITE).xpos) - jdq
+        a = ff * xdd_d + kd * Kd * (vel * xd_d - J @ data.qvel) + kp * Kp * (x_d - data.site(SITE).xpos) - jdq
         return mass(mass_matrix(model, data)) @ np.linalg.solve(J, a) + bias(model, data)
 
     return ct_op_torque
 
 
-def ik_variant(ik, kp=1.0, kd=1.0, ff=1.0, mass=lambda M: M, bias=lambda model, data: bias_forces(data)):
+def ik_variant(ik, kp=1.0, kd=1.0, ff=1.0, vel=1.0, mass=lambda M: M, bias=lambda model, data: bias_forces(data)):
     """IK + joint CT with one term changed, as :func:`os_variant`."""
 
     def ct_ik_joint_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
@@ -709,7 +710,7 @@ def ik_variant(ik, kp=1.0, kd=1.0, ff=1.0, mass=lambda M: M, bias=lambda model, 
         J_d, _ = jacobian_at(model, q_d)
         qd_d = np.linalg.solve(J_d, xd_d)
         qdd_d = np.linalg.solve(J_d, ff * xdd_d - jacobian_at(model, q_d, qd_d)[1])
-        fb = kd * Kd * (qd_d - data.qvel) + kp * Kp * (q_d - data.qpos)
+        fb = kd * Kd * (vel * qd_d - data.qvel) + kp * Kp * (q_d - data.qpos)
         return mass(mass_matrix(model, data)) @ (qdd_d + fb) + bias(model, data)
 
     return ct_ik_joint_torque
@@ -773,8 +774,9 @@ def test_a_joint_velocity_in_the_task_damping_and_a_transposed_solve_are_named()
         ({"kp": -1.0, "kd": -1.0}, 0.0, "the feedback terms (Kp, Kd) have the wrong sign: e = x_d − x"),
         ({"kd": -1.0}, 0.5, "the damping has the wrong sign: it must be +Kd (ẋ_d − J q̇)"),
         ({"kd": 0.0}, 0.5, "the damping term Kd (ẋ_d − J q̇) is missing"),
+        ({"vel": 0.0}, 0.5, "the damping term Kd (ẋ_d − J q̇) is missing, or the ẋ_d in it (the arm is at rest"),
     ],
-    ids=["no_M", "inverse_M", "feedback_sign", "damping_sign", "no_damping"],
+    ids=["no_M", "inverse_M", "feedback_sign", "damping_sign", "no_damping", "no_reference_velocity"],
 )
 def test_an_operational_space_term_mistake_is_named_with_its_credit(wrong, score, words):
     result = grade("p2_osct", ct_op_torque=os_variant(**wrong))
@@ -790,8 +792,9 @@ def test_an_operational_space_term_mistake_is_named_with_its_credit(wrong, score
         ({"ff": 0.0}, 0.25, "the feed-forward acceleration q̈_d is missing"),
         ({"kp": -1.0, "kd": -1.0}, 0.0, "the feedback terms (Kp, Kd) have the wrong sign: e = q_d − q"),
         ({"kp": -1.0}, 0.0, "the spring term has the wrong sign: Kp (q_d − q)"),
+        ({"vel": 0.0}, 0.5, "the damping is −Kd q̇, with q̇_d missing: it must be Kd (q̇_d − q̇)"),
     ],
-    ids=["no_h", "no_M", "inverse_M", "no_feed_forward", "feedback_sign", "spring_sign"],
+    ids=["no_h", "no_M", "inverse_M", "no_feed_forward", "feedback_sign", "spring_sign", "no_reference_velocity"],
 )
 def test_an_ik_joint_ct_term_mistake_is_named_with_its_credit(master2, wrong, score, words):
     result = grade("p2_ikct", ct_ik_joint_torque=ik_variant(master2["ik_3r"], **wrong))
@@ -1487,7 +1490,7 @@ def test_calling_labsupports_kinematics_scores_zero(master1):
     def ik_through_2r(x, elbow_up=True):
         x = np.asarray(x, float)
         rho, h = np.hypot(x[0], x[1]), x[2] - 1.0
-        q = planar_ik(np.array([rho, h]), branch="down" if elbow_up else "up")  # the 2R arm's own IK
+        q = planar_ik(np.array([rho, h]), elbow_up=not elbow_up)  # the 2R arm's own IK
         return master1["ik_3r"](x, elbow_up) + 0 * q[0]
 
     result = grade("p1_ik", ik_3r=ik_through_2r)

@@ -228,6 +228,7 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
     g = gravity(model, state.q)
     e, edot = x_d - T.x, xd_d - J @ state.qdot
     jdq_reference = terms(model, state.q, np.linalg.solve(J, xd_d)).jdq  # J̇q̇ at the velocity J⁻¹ẋ_d
+    at_rest = not state.qdot.any()  # there −Kd J q̇ is zero: a damping without ẋ_d is no damping
 
     def law(a):
         return M @ np.linalg.solve(J, a) + h
@@ -275,7 +276,18 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
         "damping_sign": Mistake(
             law(xdd_d - Kd * edot + Kp * e - jdq), "the damping has the wrong sign: it must be +Kd (ẋ_d − J q̇).", 0.5
         ),
-        "no_damping": Mistake(law(xdd_d + Kp * e - jdq), "the damping term Kd (ẋ_d − J q̇) is missing.", 0.5),
+        "no_damping": Mistake(
+            law(xdd_d + Kp * e - jdq),
+            "the damping term Kd (ẋ_d − J q̇) is missing"
+            + (", or the ẋ_d in it (the arm is at rest here, where the two look alike)." if at_rest else "."),
+            0.5,
+        ),
+        "no_reference_velocity": Mistake(
+            law(xdd_d - Kd * (J @ state.qdot) + Kp * e - jdq),
+            "the damping is −Kd J q̇, with ẋ_d missing: it must be Kd (ẋ_d − J q̇). Without ẋ_d the damping "
+            "brakes the tip toward standing still, so on the moving circle it lags behind its reference.",
+            0.5,
+        ),
         "joint_velocity": Mistake(
             law(xdd_d + Kd * (xd_d - state.qdot) + Kp * e - jdq),
             "the damping compares ẋ_d with q̇, the joints' velocity: the end effector's is ẋ = J q̇, so ė = ẋ_d − J q̇.",
@@ -417,6 +429,13 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
         "damping_sign": Mistake(
             M @ (qdd_d - Kd * (qd_d - qdot) + Kp * (q_d - q)) + h,
             "the damping has the wrong sign: it must be +Kd (q̇_d − q̇).",
+            0.5,
+        ),
+        "no_reference_velocity": Mistake(
+            law(qdd_d, qd=np.zeros_like(qd_d)),
+            "the damping is −Kd q̇, with q̇_d missing: it must be Kd (q̇_d − q̇), where q̇_d = J(q_d)⁻¹ ẋ_d. "
+            "Without q̇_d the damping brakes the joints toward standing still, so on the moving circle the arm "
+            "lags behind its reference.",
             0.5,
         ),
         "own_gains": own_gains_mistake(M @ (qdd_d + KD * (qd_d - qdot) + KP * (q_d - q)) + h, KP, KD),
