@@ -67,8 +67,8 @@ document.addEventListener("DOMContentLoaded", () => {
    the header's buttons, and a stem is seldom written so ("graviti" for "gravity"), so every
    result quoted the header ("...Colab"), and a quote that did reach the text showed formulas as
    their TeX source (\(mgr\cos\theta\)). Here the quote is taken from the article, around the
-   longest start of a search word that occurs in it, with its white space collapsed and each
-   formula's TeX read as text. */
+   longest start of a search word that occurs in it, with its white space collapsed, a dash after
+   each heading (which ran into the text that follows) and each formula's TeX read as text. */
 const TEX_SYMBOLS = {
   alpha: "α", beta: "β", gamma: "γ", delta: "δ", epsilon: "ε", zeta: "ζ", eta: "η", theta: "θ",
   lambda: "λ", mu: "μ", nu: "ν", pi: "π", rho: "ρ", sigma: "σ", tau: "τ", phi: "φ", omega: "ω",
@@ -104,6 +104,7 @@ document.addEventListener("DOMContentLoaded", () => {
   Search.makeSearchSummary = (htmlText, keywords, anchor) => {
     const page = new DOMParser().parseFromString(htmlText, "text/html");
     page.querySelectorAll(".headerlink, script, style").forEach((el) => el.remove());
+    page.querySelectorAll("h1, h2, h3, h4, h5, h6").forEach((h) => h.append(" — ")); // a heading ends
     const block =
       (anchor && page.querySelector(`article ${anchor}`)) || page.querySelector("article") || page.querySelector("main");
     const text = block ? texAsText(block.textContent) : ""; // Sphinx appends what this returns: never null

@@ -194,6 +194,16 @@ def test_formulas_in_search_quotes_read_as_text(tab_page):
     assert said == ["τ = M θ̈ + h(θ, θ̇)", "x = π/4"], said
 
 
+def test_a_heading_in_a_search_quote_is_set_off_from_the_text_after_it(tab_page):
+    """A section's quote read "1.2 PD position control The arm ...", the heading run into the text."""
+    tab = tab_page("search")
+    said = tab.evaluate(
+        '() => Search.makeSearchSummary(\'<article><h2>PD control<a class="headerlink">#</a></h2>'
+        "<p>The arm settles.</p></article>', ['arm'], '').textContent"
+    )
+    assert said == "PD control — The arm settles.", said
+
+
 def test_a_search_that_finds_nothing_says_so_without_categories(tab_page):
     tab = tab_page("search")
     tab.goto(f"{tab.url}?q=nonsenseword")
