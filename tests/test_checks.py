@@ -208,6 +208,8 @@ def test_masters_get_full_marks(master1, master2, seed):
         ns = master1 if name.startswith("p1") else master2
         result = fn(DirectProbe(ns), seed)
         assert result.status == PASS and result.score == 1.0, result
+        if name == "p1_reach":  # it ends some 1e-12 mm off, which read "7.17e-12 mm"
+            assert "the end effector ends within 0.001 mm of the target" in result.message, result
 
 
 def test_masters_write_the_laws_by_hand():
