@@ -96,6 +96,7 @@ function texAsText(text) {
     .replace(/\\./g, " ")
     .replace(/[{}]/g, "")
     .replace(/\s+/g, " ")
+    .replace(/ ([.,;:!?)])/g, "$1") // a formula's closing \) left a space before the stop after it
     .trim();
 }
 

@@ -189,9 +189,10 @@ def test_formulas_in_search_quotes_read_as_text(tab_page):
     tab = tab_page("search")
     said = tab.evaluate(
         "() => [texAsText('\\\\(\\\\tau = M\\\\ddot\\\\theta + h(\\\\theta,\\\\dot{\\\\theta})\\\\)'), "
-        "texAsText('\\\\begin{aligned} x &= \\\\frac{\\\\pi}{4} \\\\end{aligned}')]"
+        "texAsText('\\\\begin{aligned} x &= \\\\frac{\\\\pi}{4} \\\\end{aligned}'), "
+        "texAsText('designed for \\\\(\\\\zeta = 1\\\\). Critical \\\\(\\\\theta\\\\), and')]"
     )
-    assert said == ["τ = M θ̈ + h(θ, θ̇)", "x = π/4"], said
+    assert said == ["τ = M θ̈ + h(θ, θ̇)", "x = π/4", "designed for ζ = 1. Critical θ, and"], said
 
 
 def test_a_heading_in_a_search_quote_is_set_off_from_the_text_after_it(tab_page):
