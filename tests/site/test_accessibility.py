@@ -143,6 +143,23 @@ def test_videos_fit_a_phone(on_every_page, width):
     assert not cut, f"videos wider than their column in a {width} px window: {cut}"
 
 
+#: Each of a page's Previous and Next links: its title, and its share of the column's width.
+PREV_NEXT_SHARE_JS = """() => [...document.querySelectorAll('.prev-next-area a')].map(a => ({
+  title: a.querySelector('p.prev-next-title').textContent.trim(),
+  share: a.getBoundingClientRect().width / a.closest('.prev-next-area').getBoundingClientRect().width,
+}))"""
+
+
+@pytest.mark.parametrize("width", (320, 390))
+def test_previous_and_next_links_take_a_line_each_on_a_phone(on_every_page, width):
+    """The theme gives Previous and Next 45 % of one line each: at 320 px "Task 2: the single joint
+    in MuJoCo" broke into five lines of one or two words. Each takes the column's width there."""
+    found = on_every_page(PREV_NEXT_SHARE_JS, width)
+    assert sum(len(v) for v in found.values()) >= 10, found
+    narrow = {page: [t["title"] for t in links if t["share"] < 0.95] for page, links in found.items()}
+    assert not any(narrow.values()), f"Previous/Next links narrower than the column at {width} px: {narrow}"
+
+
 #: The weight of each video's caption, its written description, beside the weight of the page's
 #: body text.
 CAPTION_WEIGHT_JS = """() => {
