@@ -164,18 +164,22 @@ def test_previous_and_next_links_take_a_line_each_on_a_phone(on_every_page, widt
 #: body text.
 CAPTION_WEIGHT_JS = """() => {
   const body = +getComputedStyle(document.querySelector('main p')).fontWeight;
-  return [...document.querySelectorAll('div.cell_output figure figcaption')].map(
-    c => ({caption: +getComputedStyle(c).fontWeight, body, text: c.textContent.slice(0, 40)}));
+  return [...document.querySelectorAll('div.cell_output figure figcaption')].map(c => ({
+    caption: +getComputedStyle(c).fontWeight, body, align: getComputedStyle(c).textAlign,
+    text: c.textContent.slice(0, 40),
+  }));
 }"""
 
 
 def test_video_captions_are_drawn_as_the_body_text(on_every_page):
     """A video's caption is its only written description on the page; the theme drew it at
-    its light weight 300, thin and grey beside the body text."""
+    its light weight 300, thin and grey beside the body text, and centred its lines."""
     captions = on_every_page(CAPTION_WEIGHT_JS, 1280)
     assert sum(len(c) for c in captions.values()) >= 4, "expected the Task 3 and Task 4 videos' captions"
     light = {page: [c for c in found if c["caption"] < c["body"]] for page, found in captions.items()}
     assert not any(light.values()), f"captions lighter than the body text: {light}"
+    centred = {page: [c for c in found if c["align"] not in ("start", "left")] for page, found in captions.items()}
+    assert not any(centred.values()), f"captions not aligned as the body text: {centred}"
 
 
 #: Every formula a reader would have to scroll sideways to read: a displayed one wider than its
