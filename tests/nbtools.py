@@ -8,7 +8,6 @@
 
 from __future__ import annotations
 
-import ast
 from pathlib import Path
 
 import nbformat
@@ -129,18 +128,9 @@ def carried_code(fn, site_packages: str = COLAB_SITE_PACKAGES, filename: str | N
 
 def settings_of(notebook: str, first_name: str) -> dict:
     """The settings that open the code cell of ``notebooks/<notebook>`` whose source starts with
-    ``first_name``: its first assignments of values made from NumPy and each other, evaluated (up
-    to the first statement that is not such a setting). A test compares them with the values it
-    pins, so that a setting changed in the notebook is caught there, and not only as a number
-    that moved."""
-    import numpy as np
+    ``first_name`` (:func:`labsupport.instructor.assign.cell_settings`). A test compares them with
+    the values it pins, so that a setting changed in the notebook is caught there, and not only as
+    a number that moved."""
+    from labsupport.instructor.assign import cell_settings
 
-    nb = nbformat.read(ROOT / "notebooks" / notebook, as_version=4)
-    cell = next(c for c in nb.cells if c.cell_type == "code" and c.source.startswith(first_name))
-    names = {"np": np}
-    for node in ast.parse(cell.source).body:
-        loads = {n.id for n in ast.walk(node) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Load)}
-        if not isinstance(node, ast.Assign) or not loads <= names.keys():
-            break
-        exec(compile(ast.Module([node], type_ignores=[]), notebook, "exec"), names)
-    return names
+    return cell_settings(nbformat.read(ROOT / "notebooks" / notebook, as_version=4), first_name, notebook)

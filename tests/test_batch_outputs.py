@@ -630,7 +630,12 @@ def test_assign_check_says_how_to_regenerate_what_drifted(tmp_path, capsys, monk
         "student": "notebooks/p9.ipynb",
         "checks": [{"name": "p1_pd", "points": 1, "title": "the one check"}],
     }
-    master.cells = [nbformat.v4.new_code_cell('check("p1_pd", globals())', id="c1")]
+    problem1 = nbformat.read(ROOT / "notebooks" / "masters" / "problem1_reaching.ipynb", as_version=4)
+    settings = next(c.source for c in problem1.cells if c.cell_type == "code" and c.source.startswith("q0 ="))
+    master.cells = [  # the settings the check's grader copies, and the check
+        nbformat.v4.new_code_cell(settings, id="c0"),
+        nbformat.v4.new_code_cell('check("p1_pd", globals())', id="c1"),
+    ]
     (tmp_path / "notebooks" / "masters").mkdir(parents=True)
     nbformat.write(master, tmp_path / "notebooks" / "masters" / "p9.ipynb")
     monkeypatch.setattr(assign, "ROOT", tmp_path)  # a checkout of one master, nothing generated yet

@@ -3,9 +3,12 @@ TODOs, typical mistakes (each named), unusual but correct solutions, forbidden c
 labsupport, secret seeds, and the student's package holding no answer."""
 
 import ast
+import contextlib
 import importlib
 import importlib.util
 import inspect
+import io
+import json
 import os
 import pkgutil
 import re
@@ -22,7 +25,7 @@ import mujoco
 import nbformat
 import numpy as np
 import pytest
-from nbtools import carried_code, settings_of
+from nbtools import carried_code
 
 import labsupport
 import labsupport.controllers.joint_space as joint_space_alias
@@ -48,6 +51,8 @@ from labsupport.grading.feedback import (
     where_raised,
 )
 from labsupport.grading.stability import effective_damping, stiff_damping
+from labsupport.instructor import assign
+from labsupport.instructor.assign import settings_drift
 from labsupport.kinematics.planar_2r import Planar2R
 from labsupport.kinematics.planar_2r import inverse_kinematics as planar_ik
 from labsupport.trajectories import circle_3d
@@ -67,8 +72,9 @@ def namespace_of(notebook: Path) -> dict:
     cells = [c.source for c in nb.cells if c.cell_type == "code" and not c.source.startswith("check(")]
     last = max(k for k, src in enumerate(cells) if "TODO" in src or "BEGIN SOLUTION" in src)
     ns: dict = {"__name__": "__student__"}
-    for src in cells[: last + 1]:
-        exec("\n".join(line for line in src.split("\n") if not line.lstrip().startswith("%")), ns)
+    with contextlib.redirect_stdout(io.StringIO()):  # its pictures' HTML filled a failure's report
+        for src in cells[: last + 1]:
+            exec("\n".join(line for line in src.split("\n") if not line.lstrip().startswith("%")), ns)
     return ns
 
 
@@ -210,6 +216,25 @@ def test_masters_get_full_marks(master1, master2, seed):
         assert result.status == PASS and result.score == 1.0, result
         if name == "p1_reach":  # it ends some 1e-12 mm off, which read "7.17e-12 mm"
             assert "the end effector ends within 0.001 mm of the target" in result.message, result
+
+
+def test_the_masters_solution_text_quotes_its_own_pd_run(master1):
+    """The solution's prose types in the PD run's sag and final error. A gain or target changed in
+    the master moved them (to 41 mm, say) while the text kept "about 12 mm", and no test read it."""
+    nb = nbformat.read(str(ROOT / "notebooks" / "masters" / "problem1_reaching.ipynb"), as_version=4)
+    text = " ".join(next(c.source for c in nb.cells if "The measured sag matches" in c.source).split())
+    log, q_d, Kp = master1["logs"]["PD"], master1["q_des"], master1["Kp_pd"]
+    sag = q_d - log.q[-1]
+    data = common.data_at(common.arm_model(), q_d)
+    predicted = bias_forces(data) / Kp  # g(q_d) / Kp: at rest h = g
+    off = np.max(np.abs(sag[1:] / predicted[1:] - 1))  # the pan carries no gravity load
+    error_mm = 1e3 * np.linalg.norm(log.ee[-1] - master1["target_pos"])
+    for said in (
+        f"within about {100 * off:.0f} %",
+        f"about {sag[1]:.3f} rad at the shoulder and {sag[2]:.3f} rad at the elbow".replace("-", "−"),
+        f"ends about {error_mm:.0f} mm from the target",
+    ):
+        assert said in text, f'the master\'s solution cell ("The measured sag matches ...") should say {said!r}'
 
 
 def test_masters_write_the_laws_by_hand():
@@ -882,11 +907,20 @@ def test_a_law_that_ignores_the_gains_it_is_given_is_named(master1, master2):
         return lambda *args: law(*args[:-2], Kp, Kd)
 
     cases = (
-        ("p1_pd", "pd_torque", with_gains(master1["pd_torque"], 400.0, 50.0), "Kp = 400, Kd = 50"),
-        ("p1_ct", "ct_joint_torque", with_gains(master1["ct_joint_torque"], 100.0, 18.0), "Kp = 100, Kd = 18"),
-        ("p2_osct", "ct_op_torque", with_gains(master2["ct_op_torque"], 64.0, 16.0), "Kp = 64, Kd = 16"),
-        ("p2_ikct", "ct_ik_joint_torque", with_gains(master2["ct_ik_joint_torque"], 64.0, 16.0), "Kp = 64, Kd = 16"),
+        ("p1_pd", "pd_torque", problem1.KP_PD, problem1.KD_PD),
+        ("p1_ct", "ct_joint_torque", problem1.KP_CT, problem1.KD_CT),
+        ("p2_osct", "ct_op_torque", problem2.KP, problem2.KD),
+        ("p2_ikct", "ct_ik_joint_torque", problem2.KP, problem2.KD),
     )
+    cases = [  # each law with the notebook's own gains in place of those it is handed
+        (
+            name,
+            fname,
+            with_gains((master1 if name.startswith("p1") else master2)[fname], Kp, Kd),
+            f"Kp = {Kp:g}, Kd = {Kd:g}",
+        )
+        for name, fname, Kp, Kd in cases
+    ]
     for name, fname, law, gains in cases:
         for seed in (PUBLIC_SEED, OTHER_SEED):
             result = grade(name, seed, **{fname: law})
@@ -2032,12 +2066,11 @@ def test_the_notebooks_own_run_of_a_wrong_spring_is_not_blamed_on_the_time_step(
     monkeypatch.chdir(tmp_path)
     model, data = load_model("spatial_3r")
 
-    def reference(t):
-        return circle_3d(t, np.array([1.0, 0.0, 1.5]), 0.3, np.array([0.0, 0.0, 1.0]), 0.2)
+    reference = problem2.reference  # the notebook's circle
 
     def reference_and_gains(t):
         r = reference(t)
-        return r.pos, r.vel, r.acc, 64.0, 16.0
+        return r.pos, r.vel, r.acc, problem2.KP, problem2.KD
 
     def os_ct_spring_sign(model, data, x_d, xd_d, xdd_d, Kp, Kd):
         J = site_jacobian(model, data, "end_effector")[:3]
@@ -2433,25 +2466,32 @@ def test_a_slow_law_of_the_tracking_check_is_told_its_own_share(monkeypatch, cap
     assert "Note: ct_op_torque took " in out and "more than the 0.5 s the batch grader allows there" in out, out
 
 
-def test_the_grader_runs_the_students_laws_with_the_problem_notebooks_own_settings():
+@pytest.mark.parametrize("problem", ["problem1", "problem2"])
+def test_the_grader_runs_the_students_laws_with_the_problem_notebooks_own_settings(problem):
     """A student sees the runs of their notebook; the batch grades runs from the same start, with the
-    same gains and the same circle."""
-    p1 = settings_of("problem1_reaching.ipynb", "q0 =")
-    np.testing.assert_array_equal(p1["q0"], problem1.Q0)
-    assert p1["T_sim"] == problem1.DURATION
-    assert (p1["Kp_pd"], p1["Kd_pd"], p1["Kp_ct"], p1["Kd_ct"]) == (
-        problem1.KP_PD,
-        problem1.KD_PD,
-        problem1.KP_CT,
-        problem1.KD_CT,
-    )
-    p2 = settings_of("problem2_tracking.ipynb", "center, radius")
-    np.testing.assert_array_equal(p2["center"], problem2.CENTER)
-    np.testing.assert_array_equal(p2["normal"], problem2.NORMAL)
-    assert (p2["radius"], p2["freq"]) == (problem2.RADIUS, problem2.FREQUENCY)
-    np.testing.assert_array_equal(p2["SHOULDER"], common.SHOULDER)
-    gains = settings_of("problem2_tracking.ipynb", "wn_t, zeta_t")
-    assert (gains["Kp_t"], gains["Kd_t"]) == (problem2.KP, problem2.KD)
+    same gains and the same circle. A setting changed in the notebook alone failed here with a bare
+    `assert (300.0, 50.0, ...) == (400.0, 50.0, ...)`, one Problem at a time; each difference is
+    named now, with the file to change, and assign refuses to write the student notebook."""
+    spec = json.loads((ROOT / "tests" / "autograder" / f"{problem}.json").read_text())
+    for path in (spec["master"], spec["student"]):
+        nb = nbformat.read(str(ROOT / path), as_version=4)
+        drift = settings_drift(nb, path)
+        assert drift == [], drift
+
+
+def test_assign_refuses_a_master_whose_settings_its_grader_does_not_share(tmp_path):
+    """Kp_pd changed to 300 in the master alone graded every student's PD against 400 without a
+    word; a circle changed in the master alone told a right IK that it missed the start."""
+    master = nbformat.read(str(ROOT / "notebooks" / "masters" / "problem1_reaching.ipynb"), as_version=4)
+    cell = next(c for c in master.cells if c.cell_type == "code" and c.source.startswith("q0 ="))
+    cell.source = cell.source.replace("Kp_pd, Kd_pd = 400.0, 50.0", "Kp_pd, Kd_pd = 300.0, 50.0")
+    (tmp_path / "notebooks" / "masters").mkdir(parents=True)
+    nbformat.write(master, str(tmp_path / "notebooks" / "masters" / "problem1_reaching.ipynb"))
+    with pytest.raises(assign.MasterError) as err:
+        assign.outputs(tmp_path)
+    said = str(err.value)
+    assert "notebooks/masters/problem1_reaching.ipynb sets Kp_pd = 300.0" in said, said
+    assert "labsupport/grading/problem1.py has KP_PD = 400.0" in said and "change both" in said, said
 
 
 # --- drawn test states: margins, branches, and the tracking cases' promises ----------------------
@@ -2754,10 +2794,11 @@ def test_a_start_typed_in_counts_only_where_the_students_own_ik_gives_it(master2
     student's own ik_3r also reaches x0, by whatever method; a borrowed ik_3r is named."""
     x0 = problem2.reference(0.0).pos
     q0 = master2["ik_3r"](x0, elbow_up=True)
+    zeros_miss = np.linalg.norm(common.tip(common.arm_model(), np.zeros(3)) - x0)
     for ik, words in (
         (lambda x, elbow_up=True: None, "but ik_3r is not implemented yet"),
         (None, "but ik_3r is not defined"),
-        (lambda x, elbow_up=True: np.zeros(3), "but your ik_3r(x0) puts it 0.5831 m from x0"),
+        (lambda x, elbow_up=True: np.zeros(3), f"but your ik_3r(x0) puts it {zeros_miss:.4g} m from x0"),
         (borrowed_ik, "planar_2r.inverse_kinematics is off limits"),
     ):
         result = grade("p2_start", q0_traj=q0, **({} if ik is None else {"ik_3r": ik}))
@@ -2779,7 +2820,7 @@ def test_a_start_off_the_circle_is_told_how_far():
     off it is and which point it should reach."""
     result = grade("p2_start", q0_traj=np.zeros(3))
     assert result.status == FAIL and result.score == 0, result
-    assert "m from the circle's start point [1.  0.3 1.5]; solve the IK for x_d(0)" in result.message, result
+    assert f"m from the circle's start point {problem2.reference(0.0).pos}; solve the IK" in result.message, result
 
 
 def test_a_run_that_leaves_its_branch_asks_about_the_ik_only_where_the_ik_left_it():
@@ -2912,13 +2953,16 @@ def test_a_run_toward_a_target_in_degrees_is_told_the_degrees_not_the_gains(mast
 
     monkeypatch.chdir(tmp_path)
     model, data = load_model("spatial_3r")
-    for name, gains in (("pd_torque", (400.0, 50.0)), ("ct_joint_torque", (100.0, 18.0))):
+    for name, gains in (
+        ("pd_torque", (problem1.KP_PD, problem1.KD_PD)),
+        ("ct_joint_torque", (problem1.KP_CT, problem1.KD_CT)),
+    ):
         ctrl = as_controller(master1[name], np.degrees(master1["q_des"]), *gains)
         assert attempt("run", lambda ctrl=ctrl: simulate(model, data, ctrl, 1.0, q0=problem1.Q0), ctrl, model) is None
         said = capsys.readouterr().out
         assert "diverged" in said and "has angles beyond 2π: are they in degrees?" in said and "np.radians" in said
         assert "Lower the gains" not in said
-    assert stability.target_in_degrees(master1["pd_torque"], (master1["q_des"], 400.0, 50.0)) is None
+    assert stability.target_in_degrees(master1["pd_torque"], (master1["q_des"], problem1.KP_PD, problem1.KD_PD)) is None
     x_far = np.array([10.0, 0.0, 0.0])  # a Cartesian target is not angles, however far
     assert stability.target_in_degrees(lambda model, data, x_d, Kp, Kd: None, (x_far, 1.0, 1.0)) is None
 

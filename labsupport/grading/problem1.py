@@ -67,6 +67,12 @@ DURATION = 5.0  # [s]
 WN_CT, ZETA_CT = 10.0, 0.9  # computed-torque design
 KP_CT, KD_CT = WN_CT**2, 2 * ZETA_CT * WN_CT
 KP_PD, KD_PD = 400.0, 50.0  # the notebook's PD gains, the lab's
+#: The notebook's settings that the checks copy: for the code cell that opens with the key, each
+#: name it sets and the constant here that must equal it (``labsupport.instructor.assign``
+#: refuses to write the student notebook while the master and these differ).
+NOTEBOOK_SETTINGS = {
+    "q0 =": {"q0": "Q0", "T_sim": "DURATION", "Kp_pd": "KP_PD", "Kd_pd": "KD_PD", "Kp_ct": "KP_CT", "Kd_ct": "KD_CT"}
+}
 REACH_TOL = 1e-3  # final end-effector error the computed torque must reach [m]
 #: An IK solution must put the tip this close to the target [m] (a tenth of the reach tolerance:
 #: a numerical IK that stops at 1e-5 m passes).

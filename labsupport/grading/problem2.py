@@ -82,6 +82,18 @@ NORMAL = np.array([0.0, 0.0, 1.0])
 FREQUENCY = 0.2  # [Hz]
 WN, ZETA = 8.0, 1.0
 KP, KD = WN**2, 2 * ZETA * WN
+#: The notebook's settings that the checks copy, as :data:`problem1.NOTEBOOK_SETTINGS` (the arm's
+#: shoulder is :data:`common.SHOULDER`).
+NOTEBOOK_SETTINGS = {
+    "center, radius": {
+        "center": "CENTER",
+        "normal": "NORMAL",
+        "radius": "RADIUS",
+        "freq": "FREQUENCY",
+        "SHOULDER": "common.SHOULDER",
+    },
+    "wn_t, zeta_t": {"Kp_t": "KP", "Kd_t": "KD"},
+}
 #: RMS error over one turn that both controllers must stay below [m]. Right laws track the drawn
 #: circles to 0.075 mm at most (over 101 seeds, the public one the worst), and with a J̇q̇ 5 % off
 #: (graded as right) to 0.16 mm; every known

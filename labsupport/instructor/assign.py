@@ -30,13 +30,16 @@ taken from a submission.
 from __future__ import annotations
 
 import argparse
+import ast
 import copy
+import importlib
 import json
 import re
 import sys
 from pathlib import Path
 
 import nbformat
+import numpy as np
 
 from labsupport.grading import registry
 
@@ -227,6 +230,48 @@ def student_notebook(master: nbformat.NotebookNode, where: str = "master") -> nb
     return nb
 
 
+def cell_settings(nb: nbformat.NotebookNode, first_name: str, where: str = "the notebook") -> dict:
+    """The settings that open the code cell of ``nb`` whose source starts with ``first_name``: its
+    first assignments of values made from NumPy and each other, evaluated, up to the first
+    statement that is not such a setting (``{"q0": array([...]), "T_sim": 5.0, ...}``)."""
+    cell = next((c for c in nb.cells if c.cell_type == "code" and c.source.startswith(first_name)), None)
+    if cell is None:
+        raise MasterError(f"{where} has no code cell that starts with {first_name!r}, where its settings are read")
+    names = {"np": np}
+    for node in ast.parse(cell.source).body:
+        loads = {n.id for n in ast.walk(node) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Load)}
+        if not isinstance(node, ast.Assign) or not loads <= names.keys():
+            break
+        exec(compile(ast.Module([node], type_ignores=[]), where, "exec"), names)
+    return names
+
+
+def settings_drift(master: nbformat.NotebookNode, where: str = "the master") -> list[str]:
+    """Each setting of the master that the grader of its checks (the module of
+    :mod:`labsupport.grading` that holds them) copies, in its ``NOTEBOOK_SETTINGS``, and holds
+    another value of: the student would run one arm and be graded on another."""
+    checks = registry()
+    graders = {
+        checks[c["name"]].__module__ for c in master.metadata["labsupport_grading"]["checks"] if c["name"] in checks
+    }
+    common = importlib.import_module("labsupport.grading.common")
+    drift = []
+    for grader in map(importlib.import_module, sorted(graders)):
+        for first_name, names in grader.NOTEBOOK_SETTINGS.items():
+            found = cell_settings(master, first_name, where)
+            for name, constant in names.items():
+                module, attr = (common, constant[7:]) if constant.startswith("common.") else (grader, constant)
+                value = getattr(module, attr)
+                if name not in found:
+                    drift.append(f"{where} no longer sets {name} in the cell that starts with {first_name!r}")
+                elif np.shape(found[name]) != np.shape(value) or not np.array_equal(found[name], value):
+                    drift.append(
+                        f"{where} sets {name} = {found[name]!r}, its grader labsupport/grading/"
+                        f"{module.__name__.rsplit('.', 1)[1]}.py has {attr} = {value!r}"
+                    )
+    return drift
+
+
 def spec(master: nbformat.NotebookNode, master_path: str) -> dict:
     """The autograder spec of a master: problem, notebooks, and the checks with their points."""
     meta = master.metadata["labsupport_grading"]
@@ -260,6 +305,11 @@ def outputs(root: Path = Path(".")) -> dict[Path, str]:
             ) from None
         student = student_notebook(master, rel)
         sp = spec(master, rel)
+        if drift := settings_drift(master, rel):
+            raise MasterError(
+                "; ".join(drift) + ". The checks run the student's laws with the grader's values: change both to "
+                "the same value (and the prose and the tests that quote the old one), then run this again"
+            )
         files[root / sp["student"]] = render(student)
         files[root / SPEC_DIR / f"{sp['problem']}.json"] = json.dumps(sp, indent=2, ensure_ascii=False) + "\n"
     return files
