@@ -717,13 +717,20 @@ def gravity_at(model, q):
     return d.qfrc_bias.copy()
 
 
-def os_variant(kp=1.0, kd=1.0, ff=1.0, vel=1.0, mass=lambda M: M, bias=lambda model, data: bias_forces(data)):
-    """OS-CT with one term changed: a gain, the feed-forward or the damping's reference velocity
-    scaled, M or h replaced."""
+def os_variant(
+    kp=1.0, kd=1.0, ff=1.0, vel=1.0, tip_velocity=1.0, mass=lambda M: M, bias=lambda model, data: bias_forces(data)
+):
+    """OS-CT with one term changed: a gain, the feed-forward, or the reference's or the tip's velocity
+    in the damping scaled, M or h replaced."""
 
     def ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
         J, jdq = site_jacobian(model, data, SITE)[:3], site_jdot_qdot(model, data, SITE)[:3]
-        a = ff * xdd_d + kd * Kd * (vel * xd_d - J @ data.qvel) + kp * Kp * (x_d - data.site(SITE).xpos) - jdq
+        a = (
+            ff * xdd_d
+            + kd * Kd * (vel * xd_d - tip_velocity * J @ data.qvel)
+            + kp * Kp * (x_d - data.site(SITE).xpos)
+            - jdq
+        )
         return mass(mass_matrix(model, data)) @ np.linalg.solve(J, a) + bias(model, data)
 
     return ct_op_torque
@@ -791,6 +798,114 @@ def test_a_joint_velocity_in_the_task_damping_and_a_transposed_solve_are_named()
         assert "momentarily at rest" not in result.message
         result = grade("p2_osct", seed, ct_op_torque=transposed)
         assert result.score == 0 and "solve with J, not Jᵀ" in result.message, result
+
+
+def ik_velocity_variant(ik, velocity, acceleration, right_jdot=False):
+    """IK + joint CT whose q̇_d is ``velocity(J_d, J, xd_d)`` and whose q̈_d is
+    ``acceleration(J_d, xdd_d, jdq_d)``, with J̇q̇_d at that q̇_d (or at the right one, ``right_jdot``):
+    the reference's velocity got wrong one way or another."""
+
+    def ct_ik_joint_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        q_d = ik(x_d, elbow_up=True)
+        J_d, _ = jacobian_at(model, q_d)
+        qd_d = velocity(J_d, site_jacobian(model, data, SITE)[:3], xd_d)
+        qdd_d = acceleration(J_d, xdd_d, jacobian_at(model, q_d, np.linalg.solve(J_d, xd_d) if right_jdot else qd_d)[1])
+        fb = Kd * (qd_d - data.qvel) + Kp * (q_d - data.qpos)
+        return mass_matrix(model, data) @ (qdd_d + fb) + bias_forces(data)
+
+    return ct_ik_joint_torque
+
+
+def right_acceleration(J_d, xdd_d, jdq_d):
+    return np.linalg.solve(J_d, xdd_d - jdq_d)
+
+
+def zero_velocity(J_d, J, xd_d):
+    return np.zeros(3)
+
+
+def cartesian_velocity(J_d, J, xd_d):
+    return xd_d
+
+
+def velocity_through_the_arms_jacobian(J_d, J, xd_d):
+    return np.linalg.solve(J, xd_d)
+
+
+@pytest.mark.parametrize(
+    ("velocity", "acceleration", "right_jdot", "score", "words"),
+    [
+        (zero_velocity, right_acceleration, False, 0.5, "q̇_d is zero throughout the law"),
+        (zero_velocity, right_acceleration, True, 0.5, "the damping is −Kd q̇, with q̇_d missing"),
+        (cartesian_velocity, right_acceleration, False, 0.25, "the damping compares ẋ_d, the tip's velocity, with q̇"),
+        (cartesian_velocity, right_acceleration, True, 0.25, "the damping compares ẋ_d, the tip's velocity, with q̇"),
+        (cartesian_velocity, lambda J_d, a, jdq: a, False, 0.25, "q̇_d and q̈_d are the Cartesian ẋ_d and ẍ_d"),
+        (
+            velocity_through_the_arms_jacobian,
+            right_acceleration,
+            False,
+            0.75,
+            "q̇_d uses the Jacobian of the arm's state",
+        ),
+        (
+            velocity_through_the_arms_jacobian,
+            right_acceleration,
+            True,
+            0.75,
+            "q̇_d uses the Jacobian of the arm's state",
+        ),
+        (
+            lambda J_d, J, v: np.linalg.solve(J_d, v),
+            lambda J_d, a, jdq: np.linalg.solve(J_d, -jdq),
+            False,
+            0.25,
+            "q̈_d is missing, or zero: here the reference is at rest, so q̈_d = J(q_d)⁻¹ ẍ_d",
+        ),
+    ],
+    ids=[
+        "zero",
+        "zero_in_the_damping",
+        "cartesian",
+        "cartesian_in_the_damping",
+        "cartesian_acceleration_too",
+        "arms_jacobian",
+        "arms_jacobian_in_the_damping",
+        "acceleration_without_xdd",
+    ],
+)
+def test_a_wrong_reference_velocity_in_ik_joint_ct_is_named(master2, velocity, acceleration, right_jdot, score, words):
+    """q̇_d left at zero, taken as ẋ_d, or from the arm's J got the generic "the torque differs" (0), where
+    the larger mistake of J(q) in both q̇_d and q̈_d kept 0.75; a q̈_d without ẍ_d, zero where the reference
+    is at rest, was told that q̈_d is missing. Each with J̇q̇_d at its wrong q̇_d, or at the right one (the
+    wrong q̇_d in the damping only)."""
+    law = ik_velocity_variant(master2["ik_3r"], velocity, acceleration, right_jdot)
+    for seed in (PUBLIC_SEED, OTHER_SEED):
+        result = grade("p2_ikct", seed, ct_ik_joint_torque=law)
+        assert result.score == score and words in result.message, result
+
+
+def test_a_tracking_run_that_lags_by_centimetres_points_at_the_reference_velocity(master2):
+    """A damping without ẋ_d lags the circle by some 5 cm; the hint named only J̇q̇, h and M, whose
+    mistakes leave millimetres."""
+    result = grade(
+        "p2_track", ct_op_torque=os_variant(vel=0.0), **{f: master2[f] for f in ("ik_3r", "ct_ik_joint_torque")}
+    )
+    assert result.score == 0.5, result
+    os_ct = re.search(r"OS-CT: RMS error ([\d.]+) mm.*?; IK\+JS-CT", result.message)
+    assert os_ct and float(os_ct[1]) > 1e3 * problem2.LAG_RMS, result.message
+    os_ct = os_ct[0]
+    assert "a lag of centimetres most often comes from a damping without the reference velocity" in os_ct, os_ct
+    assert "J̇q̇, the Coriolis part of h" not in os_ct, os_ct
+
+
+def test_a_task_damping_without_the_tips_velocity_is_named():
+    """Kd ẋ_d, with −J q̇ left out, scored 0 with a bare "got … expected …", where no damping at all
+    kept half."""
+    for seed in (PUBLIC_SEED, OTHER_SEED):
+        result = grade("p2_osct", seed, ct_op_torque=os_variant(tip_velocity=0.0))
+        assert result.score == 0.5 and "the damping is Kd ẋ_d, with the tip's own velocity J q̇ missing" in (
+            result.message
+        ), result
 
 
 @pytest.mark.parametrize(

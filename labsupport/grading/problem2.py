@@ -121,6 +121,16 @@ OVER_THE_TOP = (
     "arm leaning back over its shoulder"
 )
 #: What a tracking error above :data:`RMS_TOL` from a law that runs usually means.
+#: What a tracking run that lags by centimetres says in place of :data:`TRACKING_HINT`: a wrong
+#: J̇q̇ or h leaves millimetres, a damping without the reference velocity about 90 mm on the
+#: notebook's circle.
+LAG_HINT = (
+    " (a lag of centimetres most often comes from a damping without the reference velocity, which brakes "
+    "the arm toward standing still: Kd (ẋ_d − J q̇) needs ẋ_d, Kd (q̇_d − q̇) needs q̇_d = J(q_d)⁻¹ ẋ_d; the "
+    "formula checks above say which term is wrong)"
+)
+#: Above it [m], a run's RMS error gets :data:`LAG_HINT` rather than :data:`TRACKING_HINT`.
+LAG_RMS = 0.02
 TRACKING_HINT = (
     " (a right law stays below 0.075 mm on every circle this check draws; 0.4 mm or more is what a missing "
     "or wrong term leaves: J̇q̇, the Coriolis part of h, or M, and the formula checks above say which. Where "
@@ -294,6 +304,11 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
             + (", or the ẋ_d in it (the arm is at rest here, where the two look alike)." if at_rest else "."),
             0.5,
         ),
+        "no_tip_velocity": Mistake(
+            law(xdd_d + Kd * xd_d + Kp * e - jdq),
+            "the damping is Kd ẋ_d, with the tip's own velocity J q̇ missing: it must be Kd (ẋ_d − J q̇).",
+            0.5,
+        ),
         "no_reference_velocity": Mistake(
             law(xdd_d - Kd * (J @ state.qdot) + Kp * e - jdq),
             "the damping is −Kd J q̇, with ẋ_d missing: it must be Kd (ẋ_d − J q̇). Without ẋ_d the damping "
@@ -443,6 +458,39 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
             "the damping has the wrong sign: it must be +Kd (q̇_d − q̇).",
             0.5,
         ),
+        "no_reference_velocity_at_all": Mistake(
+            law(np.linalg.solve(Td.J, xdd_d), qd=np.zeros_like(qd_d)),
+            "q̇_d is zero throughout the law: the damping is −Kd q̇, and J̇(q_d, q̇_d) q̇_d in q̈_d vanishes with "
+            "it. The reference moves: q̇_d = J(q_d)⁻¹ ẋ_d, in the damping Kd (q̇_d − q̇) and in J̇(q_d, q̇_d) q̇_d.",
+            0.5,
+        ),
+        **{  # a wrong q̇_d in the damping, with J̇q̇_d in q̈_d taken at the right q̇_d or at the same wrong one
+            f"{name}{suffix}": Mistake(law(qdd, qd=qd), text, score)
+            for name, qd, text, score in (
+                (
+                    "unmapped_velocity",
+                    xd_d,
+                    "the damping compares ẋ_d, the tip's velocity, with q̇, the joints': the joints' reference "
+                    "velocity is q̇_d = J(q_d)⁻¹ ẋ_d.",
+                    0.25,
+                ),
+                (
+                    "velocity_jacobian_at_arm",
+                    qd_now,
+                    "q̇_d uses the Jacobian of the arm's state, J(q)⁻¹ ẋ_d from the data the law is given; the "
+                    "reference needs J(q_d)⁻¹ ẋ_d, from the scratch MjData set to q_d, as your q̈_d does. The two "
+                    "agree once the arm is on the reference, so it still tracks.",
+                    0.75,
+                ),
+            )
+            for suffix, qdd in (("", qdd_d), ("_jdot", np.linalg.solve(Td.J, xdd_d - terms(model, q_d, qd).jdq)))
+        },
+        "unmapped_reference": Mistake(
+            law(xdd_d, qd=xd_d),
+            "q̇_d and q̈_d are the Cartesian ẋ_d and ẍ_d: the joint reference maps them through J(q_d)⁻¹, "
+            "q̇_d = J(q_d)⁻¹ ẋ_d and q̈_d = J(q_d)⁻¹(ẍ_d − J̇q̇_d).",
+            0.25,
+        ),
         "no_reference_velocity": Mistake(
             law(qdd_d, qd=np.zeros_like(qd_d)),
             "the damping is −Kd q̇, with q̇_d missing: it must be Kd (q̇_d − q̇), where q̇_d = J(q_d)⁻¹ ẋ_d. "
@@ -476,7 +524,16 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
         },
         "no_mass": Mistake(qdd_d + fb + h, "the mass matrix is missing: τ = M(q)(...) + h.", 0.25),
         "inverse_mass": Mistake(np.linalg.solve(M, qdd_d + fb) + h, INVERSE_MASS, 0.25),
-        "no_ff": Mistake(M @ fb + h, "the feed-forward acceleration q̈_d is missing.", 0.25),
+        "no_ff": Mistake(
+            M @ fb + h,
+            "the feed-forward acceleration q̈_d is missing"
+            + (
+                ", or zero: here the reference is at rest, so q̈_d = J(q_d)⁻¹ ẍ_d; check that ẍ_d is in it."
+                if not np.any(xd_d)
+                else "."
+            ),
+            0.25,
+        ),
         "sign": Mistake(M @ (qdd_d - fb) + h, "the feedback terms (Kp, Kd) have the wrong sign: e = q_d − q.", 0.0),
         "spring_sign": Mistake(
             law(qdd_d, qq=2 * q - q_d),
@@ -813,7 +870,7 @@ def check_tracking(probe: Probe, seed: int) -> Result:
             left = left or (NOTEBOOK_CIRCLE if _followed_the_notebooks_circle(log) else None)
             notes.append(
                 f"{label}: RMS error {show_beside(err * 1e3, RMS_TOL * 1e3)} mm, should be below {RMS_TOL * 1e3:g} mm"
-                f"{'' if left else TRACKING_HINT}" + (f" ({left})" if left else "")
+                f"{'' if left else LAG_HINT if err > LAG_RMS else TRACKING_HINT}" + (f" ({left})" if left else "")
             )
     with np.printoptions(precision=3, suppress=True):
         where = f"one turn of a circle of radius {radius:.3f} m about {center}, normal {normal}"
