@@ -120,7 +120,6 @@ OVER_THE_TOP = (
     "the over-the-top solution: it reaches x_d with the pan angle half a turn from atan2(y, x) and the "
     "arm leaning back over its shoulder"
 )
-#: What a tracking error above :data:`RMS_TOL` from a law that runs usually means.
 #: What a tracking run that lags by centimetres says in place of :data:`TRACKING_HINT`: a wrong
 #: J̇q̇ or h leaves millimetres, a damping without the reference velocity about 90 mm on the
 #: notebook's circle.
@@ -131,6 +130,7 @@ LAG_HINT = (
 )
 #: Above it [m], a run's RMS error gets :data:`LAG_HINT` rather than :data:`TRACKING_HINT`.
 LAG_RMS = 0.02
+#: What a tracking error above :data:`RMS_TOL` from a law that runs usually means.
 TRACKING_HINT = (
     " (a right law stays below 0.075 mm on every circle this check draws; 0.4 mm or more is what a missing "
     "or wrong term leaves: J̇q̇, the Coriolis part of h, or M, and the formula checks above say which. Where "
