@@ -717,20 +717,13 @@ def gravity_at(model, q):
     return d.qfrc_bias.copy()
 
 
-def os_variant(
-    kp=1.0, kd=1.0, ff=1.0, vel=1.0, tip_velocity=1.0, mass=lambda M: M, bias=lambda model, data: bias_forces(data)
-):
-    """OS-CT with one term changed: a gain, the feed-forward, or the reference's or the tip's velocity
-    in the damping scaled, M or h replaced."""
+def os_variant(kp=1.0, kd=1.0, ff=1.0, vel=1.0, mass=lambda M: M, bias=lambda model, data: bias_forces(data)):
+    """OS-CT with one term changed: a gain, the feed-forward or the damping's reference velocity
+    scaled, M or h replaced."""
 
     def ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
         J, jdq = site_jacobian(model, data, SITE)[:3], site_jdot_qdot(model, data, SITE)[:3]
-        a = (
-            ff * xdd_d
-            + kd * Kd * (vel * xd_d - tip_velocity * J @ data.qvel)
-            + kp * Kp * (x_d - data.site(SITE).xpos)
-            - jdq
-        )
+        a = ff * xdd_d + kd * Kd * (vel * xd_d - J @ data.qvel) + kp * Kp * (x_d - data.site(SITE).xpos) - jdq
         return mass(mass_matrix(model, data)) @ np.linalg.solve(J, a) + bias(model, data)
 
     return ct_op_torque
@@ -861,6 +854,13 @@ def velocity_through_the_arms_jacobian(J_d, J, xd_d):
             0.25,
             "q̈_d is missing, or zero: here the reference is at rest, so q̈_d = J(q_d)⁻¹ ẍ_d",
         ),
+        (
+            lambda J_d, J, v: np.linalg.solve(J_d, v),
+            lambda J_d, a, jdq: np.linalg.solve(J_d, a) - jdq,
+            False,
+            0.25,
+            "J̇(q_d, q̇_d) q̇_d is subtracted after J(q_d)⁻¹, from the joints' acceleration",
+        ),
     ],
     ids=[
         "zero",
@@ -871,6 +871,7 @@ def velocity_through_the_arms_jacobian(J_d, J, xd_d):
         "arms_jacobian",
         "arms_jacobian_in_the_damping",
         "acceleration_without_xdd",
+        "jdot_in_joint_space",
     ],
 )
 def test_a_wrong_reference_velocity_in_ik_joint_ct_is_named(master2, velocity, acceleration, right_jdot, score, words):
@@ -898,14 +899,34 @@ def test_a_tracking_run_that_lags_by_centimetres_points_at_the_reference_velocit
     assert "J̇q̇, the Coriolis part of h" not in os_ct, os_ct
 
 
-def test_a_task_damping_without_the_tips_velocity_is_named():
-    """Kd ẋ_d, with −J q̇ left out, scored 0 with a bare "got … expected …", where no damping at all
-    kept half."""
+def os_ct_with(tip_velocity, joint_space_jdot=False):
+    """OS-CT whose damping reads the tip's velocity as ``tip_velocity(J, qdot)``, with J̇q̇ subtracted
+    inside J⁻¹ (right) or after it (``joint_space_jdot``)."""
+
+    def ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
+        J, jdq = site_jacobian(model, data, SITE)[:3], site_jdot_qdot(model, data, SITE)[:3]
+        a = xdd_d + Kd * (xd_d - tip_velocity(J, data.qvel)) + Kp * (x_d - data.site(SITE).xpos)
+        qdd = np.linalg.solve(J, a) - jdq if joint_space_jdot else np.linalg.solve(J, a - jdq)
+        return mass_matrix(model, data) @ qdd + bias_forces(data)
+
+    return ct_op_torque
+
+
+@pytest.mark.parametrize(
+    ("law", "score", "words"),
+    [
+        (os_ct_with(lambda J, qdot: 0.0), 0.5, "the damping is Kd ẋ_d, with the tip's own velocity J q̇ missing"),
+        (os_ct_with(lambda J, qdot: J.T @ qdot), 0.25, "the damping takes the tip's velocity as Jᵀ q̇; it is ẋ = J q̇"),
+        (os_ct_with(lambda J, qdot: J @ qdot, True), 0.25, "J̇q̇ is subtracted after J⁻¹, from the joints' acceleration"),
+    ],
+    ids=["no_tip_velocity", "transposed_tip_velocity", "jdot_in_joint_space"],
+)
+def test_a_task_damping_or_jdot_in_the_wrong_space_is_named(law, score, words):
+    """Kd ẋ_d with −J q̇ left out, ẋ read as Jᵀ q̇, and J̇q̇ subtracted from q̈ rather than from ẍ scored 0
+    with a bare "got … expected …", where no damping at all kept half and ė = ẋ_d − q̇ a quarter."""
     for seed in (PUBLIC_SEED, OTHER_SEED):
-        result = grade("p2_osct", seed, ct_op_torque=os_variant(tip_velocity=0.0))
-        assert result.score == 0.5 and "the damping is Kd ẋ_d, with the tip's own velocity J q̇ missing" in (
-            result.message
-        ), result
+        result = grade("p2_osct", seed, ct_op_torque=law)
+        assert result.score == score and words in result.message, result
 
 
 @pytest.mark.parametrize(

@@ -323,6 +323,17 @@ def _os_mistakes(model, T, state, x_d, xd_d, xdd_d, Kp, Kd, fb):
         "solve_transpose": Mistake(
             M @ np.linalg.solve(J.T, xdd_d + fb - jdq) + h, "solve with J, not Jᵀ: q̈ = J⁻¹(...).", 0.0
         ),
+        "transposed_tip_velocity": Mistake(
+            law(xdd_d + Kd * (xd_d - J.T @ state.qdot) + Kp * e - jdq),
+            "the damping takes the tip's velocity as Jᵀ q̇; it is ẋ = J q̇, so ė = ẋ_d − J q̇.",
+            0.25,
+        ),
+        "jdot_in_joint_space": Mistake(
+            M @ (np.linalg.solve(J, xdd_d + fb) - jdq) + h,
+            "J̇q̇ is subtracted after J⁻¹, from the joints' acceleration, but it is an acceleration of the tip: "
+            "q̈ = J⁻¹(ẍ_d + Kd ė + Kp e − J̇q̇).",
+            0.25,
+        ),
         "own_gains": own_gains_mistake(law(xdd_d + KD * edot + KP * e - jdq), KP, KD),
         "swapped_gains": swapped_gains_mistake(law(xdd_d + Kp * edot + Kd * e - jdq), "x_d − x", "ẋ_d − J q̇"),
         **_wrong_point_mistakes(model, state, law, x_d, xdd_d, Kp, Kd, edot, jdq),
@@ -441,6 +452,12 @@ def _ik_mistakes(model, T, state, q_d, qd_d, qdd_d, x_d, xd_d, xdd_d, Kp, Kd):
             f"{JDOT_HINT} (at q_d, q̇_d: on the scratch MjData, after setting its qvel to q̇_d, call "
             "mujoco.mj_comVel before site_jdot_qdot).",
             0.5,
+        ),
+        "jdot_in_joint_space": Mistake(
+            law(np.linalg.solve(Td.J, xdd_d) - Td.jdq),
+            "J̇(q_d, q̇_d) q̇_d is subtracted after J(q_d)⁻¹, from the joints' acceleration, but it is an "
+            "acceleration of the tip: q̈_d = J(q_d)⁻¹(ẍ_d − J̇q̇_d).",
+            0.25,
         ),
         "jdot_sign": Mistake(
             law(np.linalg.solve(Td.J, xdd_d + Td.jdq)),
