@@ -717,26 +717,67 @@ def gravity_at(model, q):
     return d.qfrc_bias.copy()
 
 
-def os_variant(kp=1.0, kd=1.0, ff=1.0, vel=1.0, mass=lambda M: M, bias=lambda model, data: bias_forces(data)):
+def tip_velocity_of(J, qdot):
+    """ẋ = J q̇, the tip's velocity as the law must read it."""
+    return J @ qdot
+
+
+def os_variant(
+    kp=1.0,
+    kd=1.0,
+    ff=1.0,
+    vel=1.0,
+    mass=lambda M: M,
+    bias=lambda model, data: bias_forces(data),
+    tip_velocity=tip_velocity_of,
+    joint_space_jdot=False,
+):
     """OS-CT with one term changed: a gain, the feed-forward or the damping's reference velocity
-    scaled, M or h replaced."""
+    scaled, M or h replaced, the tip's velocity read as ``tip_velocity(J, qdot)``, or J̇q̇ subtracted
+    after J⁻¹ (``joint_space_jdot``)."""
 
     def ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
         J, jdq = site_jacobian(model, data, SITE)[:3], site_jdot_qdot(model, data, SITE)[:3]
-        a = ff * xdd_d + kd * Kd * (vel * xd_d - J @ data.qvel) + kp * Kp * (x_d - data.site(SITE).xpos) - jdq
-        return mass(mass_matrix(model, data)) @ np.linalg.solve(J, a) + bias(model, data)
+        a = ff * xdd_d + kd * Kd * (vel * xd_d - tip_velocity(J, data.qvel)) + kp * Kp * (x_d - data.site(SITE).xpos)
+        qdd = np.linalg.solve(J, a) - jdq if joint_space_jdot else np.linalg.solve(J, a - jdq)
+        return mass(mass_matrix(model, data)) @ qdd + bias(model, data)
 
     return ct_op_torque
 
 
-def ik_variant(ik, kp=1.0, kd=1.0, ff=1.0, vel=1.0, mass=lambda M: M, bias=lambda model, data: bias_forces(data)):
-    """IK + joint CT with one term changed, as :func:`os_variant`."""
+def reference_velocity(J_d, J, xd_d):
+    """q̇_d = J(q_d)⁻¹ ẋ_d, as the law must compute it (``J`` is the arm's Jacobian, for the
+    variants that take it instead)."""
+    return np.linalg.solve(J_d, xd_d)
+
+
+def right_acceleration(J_d, xdd_d, jdq_d):
+    """q̈_d = J(q_d)⁻¹(ẍ_d − J̇q̇_d)."""
+    return np.linalg.solve(J_d, xdd_d - jdq_d)
+
+
+def ik_variant(
+    ik,
+    kp=1.0,
+    kd=1.0,
+    ff=1.0,
+    vel=1.0,
+    mass=lambda M: M,
+    bias=lambda model, data: bias_forces(data),
+    velocity=reference_velocity,
+    acceleration=right_acceleration,
+    right_jdot=False,
+):
+    """IK + joint CT with one term changed, as :func:`os_variant`; or with q̇_d computed as
+    ``velocity(J_d, J, xd_d)`` and q̈_d as ``acceleration(J_d, xdd_d, jdq_d)``, J̇q̇_d taken at that
+    q̇_d (or at the right one, ``right_jdot``)."""
 
     def ct_ik_joint_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
         q_d = ik(x_d, elbow_up=True)
         J_d, _ = jacobian_at(model, q_d)
-        qd_d = np.linalg.solve(J_d, xd_d)
-        qdd_d = np.linalg.solve(J_d, ff * xdd_d - jacobian_at(model, q_d, qd_d)[1])
+        qd_d = velocity(J_d, site_jacobian(model, data, SITE)[:3], xd_d)
+        jdq_d = jacobian_at(model, q_d, reference_velocity(J_d, None, xd_d) if right_jdot else qd_d)[1]
+        qdd_d = acceleration(J_d, ff * xdd_d, jdq_d)
         fb = kd * Kd * (vel * qd_d - data.qvel) + kp * Kp * (q_d - data.qpos)
         return mass(mass_matrix(model, data)) @ (qdd_d + fb) + bias(model, data)
 
@@ -793,26 +834,6 @@ def test_a_joint_velocity_in_the_task_damping_and_a_transposed_solve_are_named()
         assert result.score == 0 and "solve with J, not Jᵀ" in result.message, result
 
 
-def ik_velocity_variant(ik, velocity, acceleration, right_jdot=False):
-    """IK + joint CT whose q̇_d is ``velocity(J_d, J, xd_d)`` and whose q̈_d is
-    ``acceleration(J_d, xdd_d, jdq_d)``, with J̇q̇_d at that q̇_d (or at the right one, ``right_jdot``):
-    the reference's velocity got wrong one way or another."""
-
-    def ct_ik_joint_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
-        q_d = ik(x_d, elbow_up=True)
-        J_d, _ = jacobian_at(model, q_d)
-        qd_d = velocity(J_d, site_jacobian(model, data, SITE)[:3], xd_d)
-        qdd_d = acceleration(J_d, xdd_d, jacobian_at(model, q_d, np.linalg.solve(J_d, xd_d) if right_jdot else qd_d)[1])
-        fb = Kd * (qd_d - data.qvel) + Kp * (q_d - data.qpos)
-        return mass_matrix(model, data) @ (qdd_d + fb) + bias_forces(data)
-
-    return ct_ik_joint_torque
-
-
-def right_acceleration(J_d, xdd_d, jdq_d):
-    return np.linalg.solve(J_d, xdd_d - jdq_d)
-
-
 def zero_velocity(J_d, J, xd_d):
     return np.zeros(3)
 
@@ -848,14 +869,14 @@ def velocity_through_the_arms_jacobian(J_d, J, xd_d):
             "q̇_d uses the Jacobian of the arm's state",
         ),
         (
-            lambda J_d, J, v: np.linalg.solve(J_d, v),
+            reference_velocity,
             lambda J_d, a, jdq: np.linalg.solve(J_d, -jdq),
             False,
             0.25,
             "q̈_d is missing, or zero: here the reference is at rest, so q̈_d = J(q_d)⁻¹ ẍ_d",
         ),
         (
-            lambda J_d, J, v: np.linalg.solve(J_d, v),
+            reference_velocity,
             lambda J_d, a, jdq: np.linalg.solve(J_d, a) - jdq,
             False,
             0.25,
@@ -879,7 +900,7 @@ def test_a_wrong_reference_velocity_in_ik_joint_ct_is_named(master2, velocity, a
     the larger mistake of J(q) in both q̇_d and q̈_d kept 0.75; a q̈_d without ẍ_d, zero where the reference
     is at rest, was told that q̈_d is missing. Each with J̇q̇_d at its wrong q̇_d, or at the right one (the
     wrong q̇_d in the damping only)."""
-    law = ik_velocity_variant(master2["ik_3r"], velocity, acceleration, right_jdot)
+    law = ik_variant(master2["ik_3r"], velocity=velocity, acceleration=acceleration, right_jdot=right_jdot)
     for seed in (PUBLIC_SEED, OTHER_SEED):
         result = grade("p2_ikct", seed, ct_ik_joint_torque=law)
         assert result.score == score and words in result.message, result
@@ -899,25 +920,20 @@ def test_a_tracking_run_that_lags_by_centimetres_points_at_the_reference_velocit
     assert "J̇q̇, the Coriolis part of h" not in os_ct, os_ct
 
 
-def os_ct_with(tip_velocity, joint_space_jdot=False):
-    """OS-CT whose damping reads the tip's velocity as ``tip_velocity(J, qdot)``, with J̇q̇ subtracted
-    inside J⁻¹ (right) or after it (``joint_space_jdot``)."""
-
-    def ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
-        J, jdq = site_jacobian(model, data, SITE)[:3], site_jdot_qdot(model, data, SITE)[:3]
-        a = xdd_d + Kd * (xd_d - tip_velocity(J, data.qvel)) + Kp * (x_d - data.site(SITE).xpos)
-        qdd = np.linalg.solve(J, a) - jdq if joint_space_jdot else np.linalg.solve(J, a - jdq)
-        return mass_matrix(model, data) @ qdd + bias_forces(data)
-
-    return ct_op_torque
-
-
 @pytest.mark.parametrize(
     ("law", "score", "words"),
     [
-        (os_ct_with(lambda J, qdot: 0.0), 0.5, "the damping is Kd ẋ_d, with the tip's own velocity J q̇ missing"),
-        (os_ct_with(lambda J, qdot: J.T @ qdot), 0.25, "the damping takes the tip's velocity as Jᵀ q̇; it is ẋ = J q̇"),
-        (os_ct_with(lambda J, qdot: J @ qdot, True), 0.25, "J̇q̇ is subtracted after J⁻¹, from the joints' acceleration"),
+        (
+            os_variant(tip_velocity=lambda J, qdot: 0.0),
+            0.5,
+            "the damping is Kd ẋ_d, with the tip's own velocity J q̇ missing",
+        ),
+        (
+            os_variant(tip_velocity=lambda J, qdot: J.T @ qdot),
+            0.25,
+            "the damping takes the tip's velocity as Jᵀ q̇; it is ẋ = J q̇",
+        ),
+        (os_variant(joint_space_jdot=True), 0.25, "J̇q̇ is subtracted after J⁻¹, from the joints' acceleration"),
     ],
     ids=["no_tip_velocity", "transposed_tip_velocity", "jdot_in_joint_space"],
 )
