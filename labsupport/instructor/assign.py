@@ -260,7 +260,9 @@ def settings_drift(master: nbformat.NotebookNode, where: str = "the master") -> 
         for first_name, names in grader.NOTEBOOK_SETTINGS.items():
             found = cell_settings(master, first_name, where)
             for name, constant in names.items():
-                module, attr = (common, constant[7:]) if constant.startswith("common.") else (grader, constant)
+                module, attr = (
+                    (common, constant.removeprefix("common.")) if constant.startswith("common.") else (grader, constant)
+                )
                 value = getattr(module, attr)
                 if name not in found:
                     drift.append(f"{where} no longer sets {name} in the cell that starts with {first_name!r}")
