@@ -722,25 +722,27 @@ def tip_velocity_of(J, qdot):
     return J @ qdot
 
 
-def os_variant(
-    kp=1.0,
-    kd=1.0,
-    ff=1.0,
-    vel=1.0,
-    mass=lambda M: M,
-    bias=lambda model, data: bias_forces(data),
-    tip_velocity=tip_velocity_of,
-    joint_space_jdot=False,
-):
-    """OS-CT with one term changed: a gain, the feed-forward or the damping's reference velocity
-    scaled, M or h replaced, the tip's velocity read as ``tip_velocity(J, qdot)``, or J̇q̇ subtracted
-    after J⁻¹ (``joint_space_jdot``)."""
+def term_changes(kp=1.0, kd=1.0, ff=1.0, vel=1.0, mass=lambda M: M, bias=lambda model, data: bias_forces(data)):
+    """The terms both wrong-law builders below may change: Kp, Kd, the feed-forward and the damping's
+    reference velocity scaled by ``kp``, ``kd``, ``ff``, ``vel``; M(q) replaced by ``mass(M)``, h by
+    ``bias(model, data)``."""
+    return types.SimpleNamespace(kp=kp, kd=kd, ff=ff, vel=vel, mass=mass, bias=bias)
+
+
+def os_variant(tip_velocity=tip_velocity_of, joint_space_jdot=False, **changes):
+    """OS-CT with one term changed (:func:`term_changes`), the tip's velocity read as
+    ``tip_velocity(J, qdot)``, or J̇q̇ subtracted after J⁻¹ (``joint_space_jdot``)."""
+    t = term_changes(**changes)
 
     def ct_op_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
         J, jdq = site_jacobian(model, data, SITE)[:3], site_jdot_qdot(model, data, SITE)[:3]
-        a = ff * xdd_d + kd * Kd * (vel * xd_d - tip_velocity(J, data.qvel)) + kp * Kp * (x_d - data.site(SITE).xpos)
+        a = (
+            t.ff * xdd_d
+            + t.kd * Kd * (t.vel * xd_d - tip_velocity(J, data.qvel))
+            + t.kp * Kp * (x_d - data.site(SITE).xpos)
+        )
         qdd = np.linalg.solve(J, a) - jdq if joint_space_jdot else np.linalg.solve(J, a - jdq)
-        return mass(mass_matrix(model, data)) @ qdd + bias(model, data)
+        return t.mass(mass_matrix(model, data)) @ qdd + t.bias(model, data)
 
     return ct_op_torque
 
@@ -756,30 +758,20 @@ def right_acceleration(J_d, xdd_d, jdq_d):
     return np.linalg.solve(J_d, xdd_d - jdq_d)
 
 
-def ik_variant(
-    ik,
-    kp=1.0,
-    kd=1.0,
-    ff=1.0,
-    vel=1.0,
-    mass=lambda M: M,
-    bias=lambda model, data: bias_forces(data),
-    velocity=reference_velocity,
-    acceleration=right_acceleration,
-    right_jdot=False,
-):
-    """IK + joint CT with one term changed, as :func:`os_variant`; or with q̇_d computed as
+def ik_variant(ik, velocity=reference_velocity, acceleration=right_acceleration, right_jdot=False, **changes):
+    """IK + joint CT with one term changed (:func:`term_changes`); or with q̇_d computed as
     ``velocity(J_d, J, xd_d)`` and q̈_d as ``acceleration(J_d, xdd_d, jdq_d)``, J̇q̇_d taken at that
     q̇_d (or at the right one, ``right_jdot``)."""
+    t = term_changes(**changes)
 
     def ct_ik_joint_torque(model, data, x_d, xd_d, xdd_d, Kp, Kd):
         q_d = ik(x_d, elbow_up=True)
         J_d, _ = jacobian_at(model, q_d)
         qd_d = velocity(J_d, site_jacobian(model, data, SITE)[:3], xd_d)
         jdq_d = jacobian_at(model, q_d, reference_velocity(J_d, None, xd_d) if right_jdot else qd_d)[1]
-        qdd_d = acceleration(J_d, ff * xdd_d, jdq_d)
-        fb = kd * Kd * (vel * qd_d - data.qvel) + kp * Kp * (q_d - data.qpos)
-        return mass(mass_matrix(model, data)) @ (qdd_d + fb) + bias(model, data)
+        qdd_d = acceleration(J_d, t.ff * xdd_d, jdq_d)
+        fb = t.kd * Kd * (t.vel * qd_d - data.qvel) + t.kp * Kp * (q_d - data.qpos)
+        return t.mass(mass_matrix(model, data)) @ (qdd_d + fb) + t.bias(model, data)
 
     return ct_ik_joint_torque
 
